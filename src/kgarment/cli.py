@@ -1,0 +1,172 @@
+"""The ``kgarment`` command line. User errors print one line and exit with status 2."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+from pathlib import Path
+
+from kgarment import __version__
+from kgarment.errors import KgarmentError
+
+log = logging.getLogger("kgarment")
+
+
+def _problem(args):
+    from kgarment.problem import Problem, load_problem
+
+    p = load_problem(args.problem) if getattr(args, "problem", None) else Problem()
+    import dataclasses
+
+    changes = {}
+    if getattr(args, "motion", None):
+        changes["motions"] = tuple(args.motion)
+    g = p.garment
+    if getattr(args, "garment", None):
+        g = dataclasses.replace(g, template=args.garment, mask=None)
+    if getattr(args, "subdivision", None) is not None:
+        g = dataclasses.replace(g, subdivision=args.subdivision)
+    changes["garment"] = g
+    p = dataclasses.replace(p, **changes)
+    # validate overrides the same way a file is validated
+    lib = p.library()
+    if p.body.model == "anny":
+        for n in p.motions:
+            lib.get(n)
+    from kgarment.garment import template_names
+
+    if g.template and g.template not in template_names():
+        from kgarment.errors import unknown
+
+        raise unknown("garment", g.template, template_names())
+    return p
+
+
+def cmd_motions(args) -> int:
+    from kgarment.body.motions import PAPER_MOTIONS
+
+    p = _problem(args)
+    for name, m in p.library().all().items():
+        tag = " (paper)" if name in PAPER_MOTIONS else ""
+        print(f"{name:24s} {m.description}{tag}")
+    return 0
+
+
+def cmd_garments(args) -> int:
+    from kgarment.garment import builtin_templates
+    from kgarment.garment.garment import ALIASES
+
+    for name, t in builtin_templates().items():
+        print(f"{name:22s} {t.description}")
+    for a, b in ALIASES.items():
+        print(f"{a:22s} = {b}")
+    return 0
+
+
+def _render_all(p, out: Path, views) -> list[Path]:
+    from kgarment.problem import build_body, build_garment
+    from kgarment.render import render_scene
+
+    t0 = time.time()
+    body = build_body(p)
+    garment = build_garment(p, body)
+    log.info("body %d vertices, garment %s: %d faces (%.3f m^2), %.1f s", body.n_vertices,
+             garment.name, garment.n_faces, garment.face_areas().sum(), time.time() - t0)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for motion in ("rest",) + tuple(p.motions):
+        path = out / f"{garment.name}_{motion}.png"
+        render_scene(path, body.vertices(motion), body.faces, garment.vertices(motion), garment.faces,
+                     attached=garment.attached, views=views,
+                     title=f"{garment.name} (subdivision {garment.subdivision}) - {motion}")
+        paths.append(path)
+    return paths
+
+
+def cmd_render(args) -> int:
+    p = _problem(args)
+    print(p.describe())
+    for path in _render_all(p, Path(args.out), tuple(args.views)):
+        print(f"wrote {path}")
+    return 0
+
+
+def cmd_demo(args) -> int:
+    import dataclasses
+
+    from kgarment.body.motions import PAPER_MOTIONS
+    from kgarment.problem import Problem
+
+    p = Problem()
+    p = dataclasses.replace(p, motions=PAPER_MOTIONS)
+    print(p.describe())
+    paths = _render_all(p, Path(args.out), ("front", "back", "left", "right"))
+    print(f"\nrendered the default body, the paper's five motions and the default shirt into {args.out}/:")
+    for path in paths:
+        print(f"  {path}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from kgarment.render.raster import STANDARD_VIEWS, VIEWS
+
+    ap = argparse.ArgumentParser(prog="kgarment", description="Design active kinesthetic garments with electrostatic clutches.")
+    ap.add_argument("--version", action="version", version=f"kgarment {__version__}")
+    ap.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
+    ap.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
+    sub = ap.add_subparsers(dest="command", metavar="COMMAND")
+
+    def common(sp, problem=True):
+        if problem:
+            sp.add_argument("problem", nargs="?", help="problem file (TOML); default: the built-in three-motion shirt")
+        sp.add_argument("--device", default="cpu", help="torch device for numerical work (default cpu)")
+
+    sp = sub.add_parser("motions", help="list the motion library (built-in and the problem's own)")
+    common(sp)
+    sp.set_defaults(func=cmd_motions)
+
+    sp = sub.add_parser("garments", help="list the garment templates")
+    sp.set_defaults(func=cmd_garments)
+
+    sp = sub.add_parser("render", help="render body, garment and attachments for each motion to PNG")
+    common(sp)
+    sp.add_argument("--motion", action="append", help="motion name (repeatable); default: the problem's motions")
+    sp.add_argument("--garment", help="garment template name (overrides the problem's)")
+    sp.add_argument("--subdivision", type=int, choices=(0, 1, 2, 3), help="garment subdivision level")
+    sp.add_argument("--views", nargs="+", default=list(STANDARD_VIEWS), choices=list(VIEWS), help="views to draw")
+    sp.add_argument("--out", default="runs/render", help="output folder (default runs/render)")
+    sp.set_defaults(func=cmd_render)
+
+    sp = sub.add_parser("demo", help="the main job on the built-in default (renders the paper's motions on the default shirt)")
+    common(sp, problem=False)
+    sp.add_argument("--out", default="runs/demo", help="output folder (default runs/demo)")
+    sp.set_defaults(func=cmd_demo)
+    return ap
+
+
+def main(argv=None) -> int:
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    level = logging.WARNING if args.quiet else (logging.DEBUG if args.verbose > 1 else logging.INFO)
+    logging.basicConfig(level=level, format="%(message)s")
+    for noisy in ("anny", "warp", "matplotlib", "PIL"):
+        logging.getLogger(noisy).setLevel(max(level, logging.WARNING))
+    if not getattr(args, "command", None):
+        ap.print_help()
+        return 2
+    try:
+        return args.func(args)
+    except KgarmentError as exc:
+        print(f"kgarment: error: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # output piped into head and the like
+        return 0
+    except KeyboardInterrupt:
+        print("kgarment: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,201 @@
+"""Problem files (TOML): body, motions and garment, parsed once into frozen dataclasses.
+
+Example::
+
+    [body]
+    model = "anny"                      # or "meshes"
+    phenotype = { height = 0.6 }        # each in [0, 1]
+    # model = "meshes": rest = "rest.obj", rig = "rig.npz" (optional),
+    #                   motions = { arm_flexion = "flexion.obj" }
+
+    [motions]
+    use = ["arms_forward", "arms_raise", "bend_forward"]
+
+    [motions.define.wave]               # a user motion (bone -> rotation about a named axis)
+    rotations = [{ bone = "upperarm01.L", axis = "-y", degrees = 60 }]
+    # or keyframes = [[{...}, ...], [{...}, ...]] for an animated sequence
+
+    [garment]
+    template = "short_sleeve_shirt"     # or mask = "faces.npy" with attach = ["opening0"]
+    subdivision = 1
+
+Relative paths are relative to the problem file.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from kgarment.body import Body, Motion, MotionLibrary, Phenotype, Rotation, load_anny_body, load_mesh_sequence
+from kgarment.body.motions import NAMED_AXES, PAPER_MOTIONS
+from kgarment.errors import KgarmentError, unknown
+from kgarment.garment import Garment, garment_from_mask, load_face_mask, make_garment, template_names
+
+DEFAULT_MOTIONS = ("arms_forward", "arms_raise", "bend_forward")
+
+
+@dataclass(frozen=True)
+class BodySpec:
+    model: str = "anny"
+    phenotype: Phenotype = field(default_factory=Phenotype)
+    rest: Path | None = None
+    rig: Path | None = None
+    meshes: tuple[tuple[str, Path], ...] = ()
+
+
+@dataclass(frozen=True)
+class GarmentSpec:
+    template: str | None = "short_sleeve_shirt"
+    mask: Path | None = None
+    attach: tuple[str, ...] = ()
+    subdivision: int = 1
+
+
+@dataclass(frozen=True)
+class Problem:
+    body: BodySpec = field(default_factory=BodySpec)
+    motions: tuple[str, ...] = DEFAULT_MOTIONS
+    user_motions: tuple[Motion, ...] = ()
+    garment: GarmentSpec = field(default_factory=GarmentSpec)
+    source: Path | None = None
+
+    def library(self) -> MotionLibrary:
+        return MotionLibrary({m.name: m for m in self.user_motions})
+
+    def motion_list(self) -> list[Motion]:
+        lib = self.library()
+        return [lib.get(n) for n in self.motions]
+
+    def describe(self) -> str:
+        """The resolved problem, in full, for the start of a run."""
+        lines = [f"problem: {self.source or '(built-in default)'}", f"body: {self.body.model}"]
+        if self.body.model == "anny":
+            lines.append(f"  phenotype: {asdict(self.body.phenotype)}")
+        else:
+            lines.append(f"  rest: {self.body.rest}; rig: {self.body.rig}")
+        lines.append(f"motions: {', '.join(self.motions)}")
+        g = self.garment
+        lines.append(f"garment: {g.template or g.mask}; subdivision {g.subdivision}" + (f"; attach {list(g.attach)}" if g.attach else ""))
+        return "\n".join(lines)
+
+
+def _check_keys(section: str, d: dict, allowed) -> None:
+    bad = set(d) - set(allowed)
+    if bad:
+        raise KgarmentError(f"[{section}]: unknown field {sorted(bad)[0]!r}; allowed: {', '.join(allowed)}")
+
+
+def _path(base: Path, p, what: str) -> Path:
+    if not isinstance(p, str):
+        raise KgarmentError(f"{what} must be a file path string")
+    q = Path(p)
+    q = q if q.is_absolute() else base / q
+    if not q.exists():
+        raise KgarmentError(f"{what}: file not found: {q}")
+    return q
+
+
+def _rotation(d, where: str) -> Rotation:
+    if not isinstance(d, dict):
+        raise KgarmentError(f"{where}: a rotation is a table {{bone, axis, degrees}}")
+    _check_keys(where, d, ("bone", "axis", "degrees"))
+    if "bone" not in d or "degrees" not in d:
+        raise KgarmentError(f"{where}: a rotation needs bone and degrees")
+    axis = d.get("axis", "x")
+    if isinstance(axis, list):
+        axis = tuple(float(a) for a in axis)
+    elif axis not in NAMED_AXES:
+        raise unknown(f"axis in {where}", axis, NAMED_AXES)
+    return Rotation(str(d["bone"]), axis, float(d["degrees"]))
+
+
+def _user_motion(name: str, d: dict) -> Motion:
+    where = f"motions.define.{name}"
+    _check_keys(where, d, ("rotations", "keyframes", "description"))
+    if ("rotations" in d) == ("keyframes" in d):
+        raise KgarmentError(f"[{where}]: give either rotations or keyframes")
+    frames = [d["rotations"]] if "rotations" in d else d["keyframes"]
+    kfs = tuple(tuple(_rotation(r, where) for r in kf) for kf in frames)
+    if not kfs or not all(kfs):
+        raise KgarmentError(f"[{where}]: a motion needs at least one rotation")
+    return Motion(name, kfs, str(d.get("description", "user motion")))
+
+
+def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None) -> Problem:
+    """Validate a parsed TOML dict into a :class:`Problem` (errors name the field)."""
+    known = ("body", "motions", "garment", "clutches", "materials", "design", "solver")
+    _check_keys("problem", data, known)
+    b = data.get("body", {})
+    _check_keys("body", b, ("model", "phenotype", "rest", "rig", "motions"))
+    model = b.get("model", "anny")
+    if model not in ("anny", "meshes"):
+        raise unknown("body model", model, ("anny", "meshes"))
+    if model == "anny":
+        body = BodySpec("anny", Phenotype.from_dict(b.get("phenotype", {})))
+    else:
+        if "rest" not in b or "motions" not in b:
+            raise KgarmentError("[body] model = 'meshes' needs rest = FILE and motions = {name = FILE}")
+        meshes = tuple((k, _path(base, v, f"body.motions.{k}")) for k, v in b["motions"].items())
+        body = BodySpec("meshes", Phenotype(), _path(base, b["rest"], "body.rest"),
+                        _path(base, b["rig"], "body.rig") if "rig" in b else None, meshes)
+    m = data.get("motions", {})
+    _check_keys("motions", m, ("use", "define"))
+    user = tuple(_user_motion(k, v) for k, v in m.get("define", {}).items())
+    if model == "meshes":
+        names = tuple(m.get("use", [k for k, _ in body.meshes]))
+        missing = [n for n in names if n not in dict(body.meshes)]
+        if missing:
+            raise unknown("motion", missing[0], dict(body.meshes))
+    else:
+        names = tuple(m.get("use", DEFAULT_MOTIONS))
+        lib = MotionLibrary({u.name: u for u in user})
+        for n in names:
+            lib.get(n)
+    if not names:
+        raise KgarmentError("[motions] use = [] lists no motion")
+    g = data.get("garment", {})
+    _check_keys("garment", g, ("template", "mask", "attach", "subdivision"))
+    sub = g.get("subdivision", 1)
+    if sub not in (0, 1, 2, 3):
+        raise KgarmentError(f"[garment] subdivision = {sub!r}; allowed: 0, 1, 2, 3")
+    if "mask" in g:
+        garment = GarmentSpec(None, _path(base, g["mask"], "garment.mask"), tuple(g.get("attach", ())), sub)
+    else:
+        t = g.get("template", "short_sleeve_shirt")
+        if t not in template_names():
+            raise unknown("garment", t, template_names())
+        garment = GarmentSpec(t, None, (), sub)
+    return Problem(body, names, user, garment, source)
+
+
+def load_problem(path) -> Problem:
+    """Read and validate a TOML problem file."""
+    path = Path(path)
+    if not path.is_file():
+        raise KgarmentError(f"problem file not found: {path}")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise KgarmentError(f"problem file {path} is not valid TOML: {exc}") from None
+    return parse_problem(data, path.parent, path)
+
+
+def build_body(problem: Problem) -> Body:
+    if problem.body.model == "anny":
+        return load_anny_body(problem.motion_list(), problem.body.phenotype)
+    meshes = dict(problem.body.meshes)
+    return load_mesh_sequence(problem.body.rest, {n: meshes[n] for n in problem.motions}, problem.body.rig)
+
+
+def build_garment(problem: Problem, body: Body) -> Garment:
+    g = problem.garment
+    if g.template:
+        return make_garment(body, g.template, g.subdivision)
+    mask = load_face_mask(g.mask, len(body.faces))
+    return garment_from_mask(body, mask, g.mask.stem, g.subdivision, g.attach)
+
+
+__all__ = ["BodySpec", "GarmentSpec", "PAPER_MOTIONS", "Problem", "build_body", "build_garment",
+           "load_problem", "parse_problem"]

@@ -1,0 +1,6 @@
+"""Headless pictures of bodies, garments and clutches."""
+
+from kgarment.render.raster import STANDARD_VIEWS, VIEWS, Layer, render_png
+from kgarment.render.scene import face_colors, render_scene
+
+__all__ = ["Layer", "STANDARD_VIEWS", "VIEWS", "face_colors", "render_png", "render_scene"]

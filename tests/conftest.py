@@ -1,0 +1,27 @@
+"""Shared fixtures. The Anny body is built once per test run (and cached on disk)."""
+
+from __future__ import annotations
+
+import logging
+
+import pytest
+
+from kgarment.body import PAPER_MOTIONS, builtin_motions, load_anny_body
+
+EXTRA_MOTIONS = ("arms_raise.left", "arms_raise.right", "arm_flexion.left", "arm_flexion.right",
+                 "knee_flexion", "torso_twist_left")
+
+
+@pytest.fixture(scope="session")
+def anny_body():
+    """The default Anny body posed in the paper's motions and a few more (session-wide)."""
+    logging.getLogger("kgarment").setLevel(logging.INFO)
+    lib = builtin_motions()
+    return load_anny_body([lib[n] for n in PAPER_MOTIONS + EXTRA_MOTIONS])
+
+
+@pytest.fixture(scope="session")
+def shirt0(anny_body):
+    from kgarment.garment import make_garment
+
+    return make_garment(anny_body, "short_sleeve_shirt", 0)
