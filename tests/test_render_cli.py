@@ -1,0 +1,137 @@
+"""Renders, the mesh-sequence backend and the command line, as a user meets them."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+from kgarment.body import load_mesh_sequence
+from kgarment.cli import main
+from kgarment.errors import KgarmentError
+from kgarment.render import render_png, render_scene
+from kgarment.render.raster import Layer
+
+
+def _image(path):
+    from PIL import Image
+
+    return np.asarray(Image.open(path).convert("RGB"))
+
+
+def test_render_png_size_and_content(tmp_path):
+    s = trimesh.creation.icosphere(3)
+    p = render_png([Layer(s.vertices, s.faces, (1.0, 0.0, 0.0, 1.0), cull=True)], tmp_path / "a.png",
+                   views=("front", "left"), height_px=200)
+    im = _image(p)
+    assert im.shape[0] == 200
+    red = (im[..., 0] > 120) & (im[..., 1] < 60) & (im[..., 2] < 60)
+    # two disks: the sphere fills a fair share of each panel
+    assert 0.2 < red.mean() < 0.8
+
+
+def test_render_scene_with_values(tmp_path, anny_body, shirt0):
+    vals = np.linspace(0, 1, shirt0.n_faces)
+    p = render_scene(tmp_path / "s.png", anny_body.vertices("arms_raise"), anny_body.faces,
+                     shirt0.vertices("arms_raise"), shirt0.faces, shirt0.attached, face_values=vals,
+                     views=("front",), height_px=300, value_label="J/m^2")
+    im = _image(p)
+    assert im.shape[0] == 300 and (im.std(axis=(0, 1)) > 10).all()
+
+
+def _write_seq(tmp_path, n_motions=2, bad=False):
+    s = trimesh.creation.icosphere(2)
+    s.export(tmp_path / "rest.obj")
+    paths = {}
+    for k in range(n_motions):
+        v = s.vertices * (1 + 0.1 * (k + 1))
+        f = s.faces[:-1] if bad and k == 1 else s.faces
+        trimesh.Trimesh(v, f, process=False).export(tmp_path / f"m{k}.ply")
+        paths[f"m{k}"] = tmp_path / f"m{k}.ply"
+    return s, paths
+
+
+def test_mesh_sequence_backend(tmp_path):
+    s, paths = _write_seq(tmp_path)
+    b = load_mesh_sequence(tmp_path / "rest.obj", paths)
+    assert b.motion_names == ("m0", "m1") and not b.rigged
+    np.testing.assert_allclose(b.vertices("m1"), s.vertices * 1.2, atol=1e-6)
+    np.testing.assert_array_equal(b.faces, s.faces)
+
+
+def test_mesh_sequence_mismatch_and_missing(tmp_path):
+    _, paths = _write_seq(tmp_path, bad=True)
+    with pytest.raises(KgarmentError, match="does not share the rest mesh's topology"):
+        load_mesh_sequence(tmp_path / "rest.obj", paths)
+    with pytest.raises(KgarmentError, match="mesh file not found"):
+        load_mesh_sequence(tmp_path / "nope.obj", {})
+
+
+def _cli(args, tmp_path):
+    r = subprocess.run([sys.executable, "-m", "kgarment.cli", *args], capture_output=True, text=True, cwd=tmp_path)
+    return r.returncode, r.stdout, r.stderr
+
+
+@pytest.mark.parametrize("cmd", [[], ["motions"], ["garments"], ["render"], ["demo"]])
+def test_help_everywhere(cmd, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(cmd + ["--help"])
+    assert e.value.code == 0
+    assert "usage: kgarment" in capsys.readouterr().out
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit):
+        main(["--version"])
+    assert capsys.readouterr().out.startswith("kgarment ")
+
+
+@pytest.mark.parametrize("toml, message", [
+    ('[motions]\nuse = ["moonwalk"]\n', "unknown motion 'moonwalk'; valid:"),
+    ('[body]\nphenotype = { weight = 1.5 }\n', "phenotype weight = 1.5 is outside [0, 1]"),
+    ('[garment]\ntemplate = "cape"\n', "unknown garment 'cape'; valid:"),
+    ('[garment]\nsubdivision = 7\n', "subdivision = 7; allowed: 0, 1, 2, 3"),
+    ('[motions.define.w]\nrotations = [{ bone = "elbow", axis = "q", degrees = 3 }]\n', "unknown axis"),
+    ('[garmnet]\n', "unknown field 'garmnet'"),
+    ('[body\n', "is not valid TOML"),
+    ('[body]\nmodel = "meshes"\nrest = "missing.obj"\nmotions = {}\n', "file not found"),
+])
+def test_bad_problem_files_exit_2_with_one_line(tmp_path, toml, message):
+    (tmp_path / "p.toml").write_text(toml)
+    rc, out, err = _cli(["render", "p.toml"], tmp_path)
+    assert rc == 2
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert message in err
+
+
+def test_missing_problem_file(tmp_path):
+    rc, _, err = _cli(["render", "nothere.toml"], tmp_path)
+    assert rc == 2 and "problem file not found" in err
+
+
+def test_unknown_bone_in_user_motion(tmp_path, anny_body):
+    (tmp_path / "p.toml").write_text(
+        '[motions]\nuse = ["w"]\n[motions.define.w]\nrotations = [{ bone = "elbow", axis = "x", degrees = 3 }]\n')
+    rc, _, err = _cli(["render", "p.toml"], tmp_path)
+    assert rc == 2 and "unknown bone 'elbow'; valid:" in err
+
+
+def test_render_command_with_user_motion(tmp_path, anny_body):
+    (tmp_path / "p.toml").write_text(
+        '[motions]\nuse = ["wave"]\n[motions.define.wave]\n'
+        'rotations = [{ bone = "upperarm01.L", axis = "-y", degrees = 60 }]\n'
+        '[garment]\ntemplate = "arm_sleeve.left"\nsubdivision = 0\n')
+    rc, out, err = _cli(["render", "p.toml", "--views", "front", "--out", "pics"], tmp_path)
+    assert rc == 0, err
+    assert (tmp_path / "pics" / "arm_sleeve.left_wave.png").is_file()
+    assert "motions: wave" in out
+
+
+def test_motions_lists_the_paper_motions(tmp_path):
+    rc, out, _ = _cli(["motions"], tmp_path)
+    assert rc == 0
+    for m in ("arms_forward", "arms_raise", "arm_flexion", "arm_extension", "bend_forward", "knee_flexion"):
+        assert m in out
