@@ -1,0 +1,54 @@
+"""Design objectives: how per-state sensitivities and energies combine (method.md §6).
+
+``active``     the paper's: maximise E_ON - E_OFF per motion; both sensitivities divided by
+               that motion's maximum ON sensitivity, summed over motions.
+``passive``    the 2022 predecessor: maximise the energy of each motion, no clutches.
+``compliance`` ON only (with clutches), the single objective the paper compares against.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kgarment.errors import unknown
+
+OBJECTIVES = ("active", "passive", "compliance")
+
+
+def states_needed(kind: str) -> tuple[str, ...]:
+    """Activation states the objective needs: ("on", "off"), ("on",) or ("none",)."""
+    if kind == "active":
+        return ("on", "off")
+    if kind == "compliance":
+        return ("on",)
+    if kind == "passive":
+        return ("none",)
+    raise unknown("objective", kind, OBJECTIVES)
+
+
+def combine_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], motions) -> np.ndarray:
+    """(m,) combined sensitivity from per-(motion, state) sensitivities, each (m,)."""
+    total = 0.0
+    for motion in motions:
+        if kind == "active":
+            on, off = alpha[(motion, "on")], alpha[(motion, "off")]
+            total = total + (on - off) / max(on.max(), 1e-300)
+        else:
+            state = states_needed(kind)[0]
+            a = alpha[(motion, state)]
+            total = total + a / max(a.max(), 1e-300)
+    return np.asarray(total)
+
+
+def objective_value(kind: str, energy: dict[tuple[str, str], float], reference: dict[tuple[str, str], float],
+                    motions) -> float:
+    """Scalar objective for convergence tracking: per motion, the (ON - OFF) energy (or the
+    energy) divided by the fully reinforced design's energy in the first state, summed."""
+    total = 0.0
+    for motion in motions:
+        if kind == "active":
+            total += (energy[(motion, "on")] - energy[(motion, "off")]) / reference[(motion, "on")]
+        else:
+            s = states_needed(kind)[0]
+            total += energy[(motion, s)] / reference[(motion, s)]
+    return float(total)
