@@ -60,3 +60,35 @@ def test_layout_clutches_land_in_the_same_place_across_subdivisions(anny_body):
 def test_unknown_layout(anny_body):
     with pytest.raises(KgarmentError, match="unknown clutch layout 'vest'"):
         default_layout("vest", anny_body)
+
+
+def test_principal_stretch_is_exact_for_an_affine_stretch():
+    from kgarment.clutch.suggest import principal_stretch
+
+    rng = np.random.default_rng(1)
+    V = np.c_[rng.random((30, 2)), np.zeros(30)]
+    from scipy.spatial import Delaunay
+
+    F = Delaunay(V[:, :2]).simplices
+    d = np.array([np.cos(0.4), np.sin(0.4), 0.0])
+    A = np.eye(3) + 0.25 * np.outer(d, d)  # stretch 1.25 along d
+    s = principal_stretch(V, V @ A.T, F)
+    np.testing.assert_allclose(s.stretch, 1.25, rtol=1e-12)
+    np.testing.assert_allclose(np.abs(s.direction @ d), 1.0, rtol=1e-12)
+
+
+def test_suggestions_sit_on_high_strain_and_follow_it(anny_body):
+    from kgarment.clutch.suggest import principal_stretch, suggest_clutches
+
+    g = make_garment(anny_body, "short_sleeve_shirt", 0)
+    specs = suggest_clutches(g, motions=["arms_forward", "bend_forward"], count=3, length=0.08)
+    assert 1 <= len(specs) <= 3
+    s = principal_stretch(g.rest_vertices, g.vertices("arms_forward"), g.faces)
+    t = principal_stretch(g.rest_vertices, g.vertices("bend_forward"), g.faces)
+    best = np.maximum(s.stretch, t.stretch)
+    cent = g.rest_vertices[g.faces].mean(1)
+    for spec in specs:
+        strip = build_clutch(spec, g.rest_vertices, g.faces)
+        mid = strip.vertices[strip.centerline[len(strip.centerline) // 2]]
+        near = np.linalg.norm(cent - mid, axis=1) < 0.03
+        assert best[near].mean() > np.percentile(best, 75)
