@@ -135,3 +135,35 @@ def test_motions_lists_the_paper_motions(tmp_path):
     assert rc == 0
     for m in ("arms_forward", "arms_raise", "arm_flexion", "arm_extension", "bend_forward", "knee_flexion"):
         assert m in out
+
+
+def test_clutches_show_and_suggest(tmp_path, anny_body):
+    (tmp_path / "p.toml").write_text(
+        '[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n'
+        '[motions]\nuse = ["arm_flexion"]\n'
+        '[clutches]\nlayout = "arm_flexion"\n'
+        '[[clutches.clutch]]\nname = "extra"\nstart = "forearm_inner.R"\ntowards = "elbow_inner.R"\nlength = 0.03\n')
+    rc, out, err = _cli(["clutches", "show", "p.toml", "--out", "c"], tmp_path)
+    assert rc == 0, err
+    assert "elbow_outer.R" in out and "extra" in out
+    assert (tmp_path / "c" / "clutches.png").is_file()
+    rc, out, err = _cli(["clutches", "suggest", "p.toml", "--count", "1", "--length", "0.05", "--out", "c"], tmp_path)
+    assert rc == 0, err
+    from kgarment.clutch import load_clutches
+
+    assert [s.name for s in load_clutches(tmp_path / "c" / "suggested.toml")] == ["suggested0"]
+    rc, _, err = _cli(["clutches", "show", "p.toml", "--out", "c"], tmp_path)
+    assert rc == 2 and "use --force" in err
+
+
+@pytest.mark.parametrize("clutch, message", [
+    ('name = "x"\nstart = "nowhere"\ndirection = [1, 0, 0]\nlength = 0.05\n', "unknown landmark"),
+    ('name = "x"\nstart = "elbow_outer.R"\ndirection = [1, 0, 0]\nlength = -1\n', "length"),
+    ('name = "x"\nstart = [0, 0, 5]\ndirection = [1, 0, 0]\nlength = 0.05\n', "from the garment"),
+    ('name = "x"\nstart = "elbow_outer.R"\ndirection = [1, 0, 0]\nlength = 0.05\nwidth = 0.5\n', "x"),
+])
+def test_bad_clutches_exit_2(tmp_path, anny_body, clutch, message):
+    (tmp_path / "p.toml").write_text('[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n'
+                                     '[motions]\nuse = ["arm_flexion"]\n[[clutches.clutch]]\n' + clutch)
+    rc, _, err = _cli(["clutches", "show", "p.toml", "--out", "c"], tmp_path)
+    assert rc == 2 and "Traceback" not in err and message in err and "'x'" in err

@@ -66,20 +66,23 @@ def cmd_garments(args) -> int:
 
 
 def _render_all(p, out: Path, views) -> list[Path]:
-    from kgarment.problem import build_body, build_garment
+    from kgarment.problem import build_body, build_clutches, build_garment
     from kgarment.render import render_scene
 
     t0 = time.time()
     body = build_body(p)
     garment = build_garment(p, body)
+    strips = build_clutches(p, body, garment)
     log.info("body %d vertices, garment %s: %d faces (%.3f m^2), %.1f s", body.n_vertices,
              garment.name, garment.n_faces, garment.face_areas().sum(), time.time() - t0)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for motion in ("rest",) + tuple(p.motions):
         path = out / f"{garment.name}_{motion}.png"
-        render_scene(path, body.vertices(motion), body.faces, garment.vertices(motion), garment.faces,
-                     attached=garment.attached, views=views,
+        gv = garment.vertices(motion)
+        cl = [(c.bound_positions(gv, garment.faces), c.faces) for c in strips]
+        render_scene(path, body.vertices(motion), body.faces, gv, garment.faces,
+                     attached=garment.attached, views=views, clutches=cl,
                      title=f"{garment.name} (subdivision {garment.subdivision}) - {motion}")
         paths.append(path)
     return paths
@@ -106,6 +109,40 @@ def cmd_demo(args) -> int:
     print(f"\nrendered the default body, the paper's five motions and the default shirt into {args.out}/:")
     for path in paths:
         print(f"  {path}")
+    return 0
+
+
+def cmd_clutches(args) -> int:
+    from kgarment.clutch import build_clutch, save_clutches
+    from kgarment.clutch.suggest import suggest_clutches
+    from kgarment.problem import build_body, build_clutches, build_garment
+    from kgarment.render import render_scene
+
+    p = _problem(args)
+    print(p.describe())
+    body = build_body(p)
+    garment = build_garment(p, body)
+    out = Path(args.out)
+    if args.action == "suggest":
+        specs = suggest_clutches(garment, count=args.count, length=args.length)
+        strips = [build_clutch(s, garment.rest_vertices, garment.faces) for s in specs]
+        name = "suggested"
+    else:
+        strips = build_clutches(p, body, garment)
+        specs = strips
+        name = "clutches"
+    out.mkdir(parents=True, exist_ok=True)
+    cfile = out / f"{name}.toml"
+    if cfile.exists() and not args.force:
+        raise KgarmentError(f"{cfile} exists; use --force to overwrite it")
+    save_clutches(cfile, specs, garment.rest_vertices, garment.faces)
+    png = render_scene(out / f"{name}.png", body.rest_vertices, body.faces, garment.rest_vertices, garment.faces,
+                       garment.attached, clutches=[(c.vertices, c.faces) for c in strips],
+                       views=("front", "back", "left", "right"), title=f"{garment.name}: {name}")
+    for c in strips:
+        a, b = c.vertices[c.centerline[0]], c.vertices[c.centerline[-1]]
+        print(f"  {c.name:18s} {100 * c.length:5.1f} cm x {100 * c.width:.1f} cm  from {a.round(3)} to {b.round(3)}")
+    print(f"wrote {cfile} (portable: rest coordinates) and {png}")
     return 0
 
 
@@ -138,6 +175,16 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--views", nargs="+", default=list(STANDARD_VIEWS), choices=list(VIEWS), help="views to draw")
     sp.add_argument("--out", default="runs/render", help="output folder (default runs/render)")
     sp.set_defaults(func=cmd_render)
+
+    sp = sub.add_parser("clutches", help="show the problem's clutches, or suggest placements over high strain")
+    sp.add_argument("action", choices=("show", "suggest"), help="show: build and draw the problem's clutches; "
+                    "suggest: propose clutches over the most stretched spots")
+    common(sp)
+    sp.add_argument("--count", type=int, default=3, help="suggest: number of clutches (default 3)")
+    sp.add_argument("--length", type=float, default=0.10, help="suggest: clutch length in metres (default 0.10)")
+    sp.add_argument("--out", default="runs/clutches", help="output folder (default runs/clutches)")
+    sp.add_argument("--force", action="store_true", help="overwrite an existing clutch file")
+    sp.set_defaults(func=cmd_clutches)
 
     sp = sub.add_parser("demo", help="the main job on the built-in default (renders the paper's motions on the default shirt)")
     common(sp, problem=False)

@@ -19,6 +19,15 @@ Example::
     template = "short_sleeve_shirt"     # or mask = "faces.npy" with attach = ["opening0"]
     subdivision = 1
 
+    [clutches]
+    layout = "shirt"                    # a default layout (see kgarment.clutch.layouts)
+    # file = "clutches.toml"            # a portable clutch file
+    [[clutches.clutch]]                 # and/or inline clutches
+    name = "extra"
+    start = "upper_back"                # a landmark, or [x, y, z] in rest coordinates
+    towards = "shoulder_top.L"          # or direction = [x, y, z]
+    length = 0.08                       # metres; width = 0.01, prestrain = 1.0
+
 Relative paths are relative to the problem file.
 """
 
@@ -34,6 +43,7 @@ from kgarment.errors import KgarmentError, unknown
 from kgarment.garment import Garment, garment_from_mask, load_face_mask, make_garment, template_names
 
 DEFAULT_MOTIONS = ("arms_forward", "arms_raise", "bend_forward")
+DEFAULT_LAYOUT = {"short_sleeve_shirt": "shirt", "long_sleeve_shirt": "long_sleeve", "arm_sleeve": "sleeve"}
 
 
 @dataclass(frozen=True)
@@ -54,11 +64,26 @@ class GarmentSpec:
 
 
 @dataclass(frozen=True)
+class ClutchesSpec:
+    """Clutches: a default layout by name, a clutch file, and/or inline clutches."""
+
+    layout: str | None = None
+    file: Path | None = None
+    inline: tuple = ()
+    side: str = "R"
+
+    @property
+    def empty(self) -> bool:
+        return self.layout is None and self.file is None and not self.inline
+
+
+@dataclass(frozen=True)
 class Problem:
     body: BodySpec = field(default_factory=BodySpec)
     motions: tuple[str, ...] = DEFAULT_MOTIONS
     user_motions: tuple[Motion, ...] = ()
     garment: GarmentSpec = field(default_factory=GarmentSpec)
+    clutches: ClutchesSpec | None = None  # None: the garment's default layout
     source: Path | None = None
 
     def library(self) -> MotionLibrary:
@@ -67,6 +92,14 @@ class Problem:
     def motion_list(self) -> list[Motion]:
         lib = self.library()
         return [lib.get(n) for n in self.motions]
+
+    def clutch_spec(self) -> ClutchesSpec:
+        """The clutches section, or the garment template's default layout when absent."""
+        if self.clutches is not None:
+            return self.clutches
+        t = (self.garment.template or "").split(".")[0]
+        side = "L" if (self.garment.template or "").endswith(".left") else "R"
+        return ClutchesSpec(layout=DEFAULT_LAYOUT.get(t), side=side)
 
     def describe(self) -> str:
         """The resolved problem, in full, for the start of a run."""
@@ -78,6 +111,10 @@ class Problem:
         lines.append(f"motions: {', '.join(self.motions)}")
         g = self.garment
         lines.append(f"garment: {g.template or g.mask}; subdivision {g.subdivision}" + (f"; attach {list(g.attach)}" if g.attach else ""))
+        c = self.clutch_spec()
+        parts = ([f"layout {c.layout} ({c.side})"] if c.layout else []) + ([f"file {c.file}"] if c.file else []) \
+            + ([f"{len(c.inline)} inline"] if c.inline else [])
+        lines.append(f"clutches: {'; '.join(parts) or 'none'}")
         return "\n".join(lines)
 
 
@@ -167,7 +204,57 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
         if t not in template_names():
             raise unknown("garment", t, template_names())
         garment = GarmentSpec(t, None, (), sub)
-    return Problem(body, names, user, garment, source)
+    clutches = _clutches(data["clutches"], base) if "clutches" in data else None
+    return Problem(body, names, user, garment, clutches, source)
+
+
+def _clutches(c: dict, base: Path) -> ClutchesSpec:
+    from kgarment.clutch.io import _spec
+    from kgarment.clutch.layouts import LAYOUTS
+
+    _check_keys("clutches", c, ("layout", "file", "clutch", "side"))
+    layout = c.get("layout")
+    if layout is not None and layout not in LAYOUTS:
+        raise unknown("clutch layout", layout, LAYOUTS)
+    side = c.get("side", "R")
+    if side not in ("L", "R"):
+        raise KgarmentError(f"[clutches] side = {side!r}; allowed: L, R")
+    f = _path(base, c["file"], "clutches.file") if "file" in c else None
+    recs = c.get("clutch", [])
+    if not isinstance(recs, list):
+        raise KgarmentError("[clutches] clutch must be an array of tables ([[clutches.clutch]])")
+    inline = tuple(_spec(r, k, "[clutches]") for k, r in enumerate(recs))
+    return ClutchesSpec(layout, f, inline, side)
+
+
+def clutch_specs(problem: Problem, body: Body) -> list:
+    """All the problem's clutch specs (layout, then file, then inline), names unique."""
+    from kgarment.clutch.io import load_clutches
+    from kgarment.clutch.layouts import default_layout
+
+    c = problem.clutch_spec()
+    specs = list(default_layout(c.layout, body, c.side)) if c.layout else []
+    if c.file:
+        specs += load_clutches(c.file)
+    specs += list(c.inline)
+    names = [s.name for s in specs]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise KgarmentError(f"[clutches]: duplicate clutch names {dup}")
+    return specs
+
+
+def build_clutches(problem: Problem, body: Body, garment: Garment) -> list:
+    """The problem's clutch strips on the garment (landmark names resolved on the body)."""
+    from kgarment.clutch import MeshTopology, build_clutch
+    from kgarment.clutch.landmarks import body_landmarks
+
+    specs = clutch_specs(problem, body)
+    if not specs:
+        return []
+    topo = MeshTopology(garment.rest_vertices, garment.faces)
+    marks = body_landmarks(body) if body.rigged else None
+    return [build_clutch(s, garment.rest_vertices, garment.faces, topology=topo, landmarks=marks) for s in specs]
 
 
 def load_problem(path) -> Problem:
@@ -197,5 +284,5 @@ def build_garment(problem: Problem, body: Body) -> Garment:
     return garment_from_mask(body, mask, g.mask.stem, g.subdivision, g.attach)
 
 
-__all__ = ["BodySpec", "GarmentSpec", "PAPER_MOTIONS", "Problem", "build_body", "build_garment",
+__all__ = ["BodySpec", "ClutchesSpec", "GarmentSpec", "build_clutches", "clutch_specs", "PAPER_MOTIONS", "Problem", "build_body", "build_garment",
            "load_problem", "parse_problem"]
