@@ -1,0 +1,224 @@
+"""The total energy of one state (design + motion + activation): value, gradient, Hessian.
+
+``E(x) = E_membrane(garment) + E_membrane(clutches) + E_contact + E_attach + E_anchor
++ E_tie`` on x (N, 3).  :class:`StateProblem` holds the per-state tensors (materials,
+penalty weights, body, springs) and the contact neighbour cache; it is the object the
+solvers minimise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from kgarment.sim.contact import contact, update_neighbors
+from kgarment.sim.materials import (
+    check_design,
+    clutch_material,
+    garment_material,
+    lame_plane_stress,
+)
+from kgarment.sim.membrane import membrane
+from kgarment.sim.model import SimModel, SimState
+from kgarment.sim.springs import GROUPS, SpringSet, attachment_springs, springs
+
+TERMS = ("membrane_garment", "membrane_clutch", "contact") + GROUPS
+
+
+class SimulationError(ValueError):
+    """A state produced a non-finite energy or gradient."""
+
+
+@dataclass(frozen=True)
+class StateMaterials:
+    """Per-element materials of one state: young, thick, stiffness (= Y t) : (M,)."""
+
+    young: np.ndarray
+    thick: np.ndarray
+
+    @property
+    def stiffness(self) -> np.ndarray:
+        return self.young * self.thick
+
+
+def state_materials(model: SimModel, design: np.ndarray, activation) -> StateMaterials:
+    """design : (m,) in [x_min, 1]; activation : (K,) in [0, 1]."""
+    d = check_design(design, model.n_faces, model.preset)
+    g = np.asarray(activation, dtype=np.float64).reshape(-1)
+    if len(g) != model.n_clutches:
+        raise ValueError(f"activation has {len(g)} entries for {model.n_clutches} clutches")
+    y, t = garment_material(d, model.preset)
+    ys, ts = [y], [t]
+    fo = model.face_offsets
+    for k in range(model.n_clutches):
+        yc, tc = clutch_material(g[k], model.preset)
+        nk = fo[k + 2] - fo[k + 1]
+        ys.append(np.full(nk, yc))
+        ts.append(np.full(nk, tc))
+    return StateMaterials(np.concatenate(ys), np.concatenate(ts))
+
+
+def penalty_weights(model: SimModel, mats: StateMaterials, spr: SpringSet):
+    """Contact weights (N,) and spring stiffnesses (S,) in N/m (formulas in ``model``)."""
+    pen = model.penalties
+    L2 = model.mean_edge**2
+    s_v = np.zeros(model.n_vertices)
+    np.maximum.at(s_v, model.elements.tri.ravel(), np.repeat(mats.stiffness, 3))
+    k_contact = pen.contact * s_v * model.vertex_area / L2
+    k = np.empty(spr.size)
+    grp = spr.group
+    s_max = np.max(np.where(spr.coef != 0, s_v[spr.index], 0.0), axis=1)
+    att = grp == GROUPS.index("attach")
+    if att.any():
+        P = model.garment_rest[spr.index[att, :3]]  # (a, 3, 3) rest triangle of the face
+        a_f = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+        k[att] = pen.attach * s_max[att] * a_f / L2
+    anc = grp == GROUPS.index("anchor")
+    k[anc] = pen.anchor * s_max[anc]
+    tie = grp == GROUPS.index("tie")
+    k[tie] = pen.tie * model.preset.cloth_stiffness * model.vertex_area[spr.index[tie, 0]] / L2
+    return k_contact, k
+
+
+class StateProblem:
+    """Energy of one state on x (N, 3) (torch float64 on ``device``).
+
+    Not a frozen structure: it carries the contact neighbour cache, refreshed as x moves.
+    """
+
+    def __init__(self, model: SimModel, design: np.ndarray, state: SimState,
+                 device: str | torch.device = "cpu", projection: str = "analytic",
+                 exact_contact_hessian: bool = False):
+        self.model, self.state, self.name = model, state, state.name
+        self.device = torch.device(device)
+        self.projection = projection
+        self.exact_contact_hessian = exact_contact_hessian
+        mot = state.motion
+        if mot.garment_x0.shape != (model.n_garment, 3):
+            raise ValueError(f"motion {mot.name!r}: garment_x0 must be ({model.n_garment}, 3)")
+        self.mats = state_materials(model, design, state.activation)
+        spr = SpringSet.concat([attachment_springs(model.garment_faces, mot.attach_faces,
+                                                   mot.attach_targets), model.static_springs])
+        k_contact, k_spring = penalty_weights(model, self.mats, spr)
+        T = self._t
+        el = model.elements
+        mu, lam = lame_plane_stress(self.mats.young, model.preset.poisson)
+        self.tri = T(el.tri, torch.long)
+        self.G = T(el.shape_grad)
+        self.weight = T(el.area * self.mats.thick)
+        self.mu, self.lam = T(mu), T(lam)
+        self.relaxed = T(model.relaxed, torch.bool)
+        self.k_contact = T(k_contact)
+        self.model_k_contact = k_contact
+        self.body = mot.body
+        self.bv, self.bn, self.bh = T(mot.body.vertices), T(mot.body.normals), T(mot.body.support)
+        self.springs = spr
+        self.s_index, self.s_coef = T(spr.index, torch.long), T(spr.coef)
+        self.s_target, self.s_k, self.s_group = T(spr.target), T(k_spring), T(spr.group, torch.long)
+        pat = model.pattern
+        sel, pos = pat.spring_positions(spr.index)
+        vals = (k_spring[:, None, None, None] * spr.coef[:, :, None, None] * spr.coef[:, None, :, None]
+                * np.ones(3)).ravel()[sel]
+        self.spring_hess = np.bincount(pos, weights=vals, minlength=pat.nnz)
+        self.elem_sel, self.elem_pos = T(pat.elem_select, torch.long), T(pat.elem_pos, torch.long)
+        self.vert_sel, self.vert_pos = T(pat.vert_select, torch.long), T(pat.vert_pos.ravel(), torch.long)
+        self.cache = None
+        self.m_garment = model.n_faces
+        self.n_evals = 0
+
+    def _t(self, a, dtype=torch.float64):
+        return torch.as_tensor(np.ascontiguousarray(a), dtype=dtype, device=self.device)
+
+    def initial_positions(self) -> np.ndarray:
+        return self.model.initial_positions(self.state.motion.garment_x0)
+
+    def _contact_args(self, x: torch.Tensor):
+        self.cache = update_neighbors(self.body, x.detach().cpu().numpy(), self.cache)
+        c = self.cache
+        key = id(c)
+        if getattr(self, "_cache_key", None) != key:
+            self._cache_t = (self._t(c.index, torch.long), self._t(c.valid), self._t(c.nearest, torch.long))
+            self._cache_key = key
+        return (self.bv, self.bn, self.bh) + self._cache_t
+
+    def _check(self, value: torch.Tensor, term: str, what: str = "energy") -> None:
+        if not bool(torch.isfinite(value).all()):
+            raise SimulationError(f"state {self.name!r}: non-finite {what} in term {term!r}")
+
+    def evaluate(self, x: torch.Tensor, order: int = 0, check: bool = True, exact: bool = False):
+        """Total energy (float, J), gradient (N, 3) tensor (order >= 1) and Hessian CSC
+        values (nnz,) numpy (order 2).  With ``check`` a non-finite term raises
+        SimulationError; without, a non-finite energy is returned as ``inf``.  ``exact``
+        asks for the exact (unprojected, full contact) Hessian instead of the PSD one."""
+        self.n_evals += 1
+        proj = "none" if exact else self.projection
+        e_m, g_m, h_m = membrane(x, self.tri, self.G, self.weight, self.mu, self.lam, self.relaxed,
+                                 order=order, projection=proj)
+        e_c, g_c, h_c = contact(x, self.k_contact, *self._contact_args(x), order=order,
+                                exact_hessian=exact or self.exact_contact_hessian)
+        e_s, g_s = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=min(order, 1))
+        total = e_m.sum() + e_c.sum() + e_s.sum()
+        if check:
+            if not bool(torch.isfinite(total)):
+                for term, val in self._split_terms(e_m, e_c, e_s).items():
+                    self._check(val, term)
+        elif not bool(torch.isfinite(total)):
+            total = torch.tensor(float("inf"))
+        if order == 0:
+            return float(total), None, None
+        grad = g_c + g_s
+        grad.index_add_(0, self.tri.reshape(-1), g_m.reshape(-1, 3))
+        if check and not bool(torch.isfinite(grad).all()):
+            self._check(g_m, "membrane", "gradient")
+            self._check(g_c, "contact", "gradient")
+            self._check(g_s, "springs", "gradient")
+        if order == 1:
+            return float(total), grad, None
+        data = torch.zeros(self.model.pattern.nnz, dtype=x.dtype, device=x.device)
+        data.index_add_(0, self.elem_pos, h_m.reshape(-1)[self.elem_sel])
+        data.index_add_(0, self.vert_pos, h_c.reshape(-1, 9)[:, self.vert_sel].reshape(-1))
+        hess = data.cpu().numpy() + self.spring_hess
+        if check and not np.all(np.isfinite(hess)):
+            raise SimulationError(f"state {self.name!r}: non-finite Hessian")
+        return float(total), grad, hess
+
+    def _split_terms(self, e_m, e_c, e_s) -> dict[str, torch.Tensor]:
+        m = self.m_garment
+        out = {"membrane_garment": e_m[:m].sum(), "membrane_clutch": e_m[m:].sum(), "contact": e_c.sum()}
+        for i, g in enumerate(GROUPS):
+            out[g] = e_s[self.s_group == i].sum()
+        return out
+
+    def terms(self, x: torch.Tensor) -> tuple[dict[str, float], np.ndarray]:
+        """Energy by term (J) and per-element membrane energy (M,) J at x."""
+        e_m, _, _ = membrane(x, self.tri, self.G, self.weight, self.mu, self.lam, self.relaxed, order=0)
+        e_c, _, _ = contact(x, self.k_contact, *self._contact_args(x), order=0)
+        e_s, _ = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=0)
+        split = self._split_terms(e_m, e_c, e_s)
+        for term, val in split.items():
+            self._check(val, term)
+        return {k: float(v) for k, v in split.items()}, e_m.cpu().numpy()
+
+    def contact_linearization(self, x: torch.Tensor):
+        """IMLS value f (N,) and gradient (N, 3) at every vertex (numpy)."""
+        from kgarment.sim.contact import imls
+
+        args = self._contact_args(x)
+        f, gf, _ = imls(x, *args, order=1)
+        return f.cpu().numpy(), gf.cpu().numpy()
+
+    def add_contact_stiffness(self, data: np.ndarray, vertices: np.ndarray, gradf: np.ndarray) -> np.ndarray:
+        """Return ``data`` (nnz,) plus the Gauss-Newton contact block ``2 k grad f grad f^T``
+        on ``vertices`` (a,) with IMLS gradients ``gradf`` (a, 3)."""
+        k = self.model_k_contact[vertices]
+        blocks = (2.0 * k)[:, None, None] * gradf[:, :, None] * gradf[:, None, :]
+        out = data.copy()
+        pos = self.model.pattern.vert_pos[vertices]  # (a, 6)
+        out[pos.ravel()] += blocks.reshape(-1, 9)[:, self.model.pattern.vert_select].ravel()
+        return out
+
+    def max_force(self, grad: torch.Tensor) -> float:
+        """Largest nodal force norm, N."""
+        return float(torch.linalg.vector_norm(grad, dim=1).max())

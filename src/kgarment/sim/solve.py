@@ -1,0 +1,155 @@
+"""Batched quasi-static solves over states (motion x activation pattern)."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from kgarment.sim.assembly import SparseCholesky
+from kgarment.sim.energy import TERMS, SimulationError, StateProblem
+from kgarment.sim.lbfgs import lbfgs_solve
+from kgarment.sim.model import SimModel, SimState
+from kgarment.sim.newton import newton_solve
+from kgarment.sim.options import Convergence, SolverOptions
+
+log = logging.getLogger(__name__)
+
+
+class ConvergenceError(SimulationError):
+    """Raised (with ``on_fail="raise"``) when states did not converge; ``.states`` names them."""
+
+    def __init__(self, message: str, states: list[str]):
+        super().__init__(message)
+        self.states = states
+
+
+@dataclass(frozen=True)
+class StateResult:
+    """Equilibrium of one state.
+
+    name : state name;  x : (N, 3) positions (garment then clutches), m;
+    garment_energy : (m,) J per garment face;  garment_density : (m,) J/m^2 of rest area
+    (= W t);  clutch_energy, clutch_density : lists of (mc_k,) per clutch;
+    energy : dict term -> J (``membrane_garment``, ``membrane_clutch``, ``contact``,
+    ``attach``, ``anchor``, ``tie``);  convergence : Convergence.
+    """
+
+    name: str
+    x: np.ndarray
+    garment_energy: np.ndarray
+    garment_density: np.ndarray
+    clutch_energy: list[np.ndarray]
+    clutch_density: list[np.ndarray]
+    energy: dict[str, float]
+    convergence: Convergence
+    garment_x: np.ndarray = field(repr=False, default=None)
+
+    @property
+    def converged(self) -> bool:
+        return self.convergence.converged
+
+    @property
+    def total_energy(self) -> float:
+        return float(sum(self.energy.values()))
+
+
+def _result(prob: StateProblem, x: np.ndarray, rec: Convergence) -> StateResult:
+    model = prob.model
+    xt = torch.as_tensor(x, device=prob.device)
+    terms, e_el = prob.terms(xt)
+    area = model.elements.area
+    dens = e_el / area
+    m, fo = model.n_faces, model.face_offsets
+    ce = [e_el[fo[k + 1]: fo[k + 2]] for k in range(model.n_clutches)]
+    cd = [dens[fo[k + 1]: fo[k + 2]] for k in range(model.n_clutches)]
+    return StateResult(name=prob.name, x=x, garment_energy=e_el[:m], garment_density=dens[:m],
+                       clutch_energy=ce, clutch_density=cd, energy={t: terms[t] for t in TERMS},
+                       convergence=rec, garment_x=x[: model.n_garment])
+
+
+def _warm(warm_start, states: Sequence[SimState], n: int) -> list[np.ndarray | None]:
+    if warm_start is None:
+        return [None] * len(states)
+    if isinstance(warm_start, Mapping):
+        got = [warm_start.get(s.name) for s in states]
+    else:
+        got = list(warm_start)
+        if len(got) != len(states):
+            raise ValueError(f"warm_start has {len(got)} entries for {len(states)} states")
+    out = []
+    for s, w in zip(states, got):
+        if isinstance(w, StateResult):
+            w = w.x
+        if w is not None:
+            w = np.asarray(w, dtype=np.float64)
+            if w.shape != (n, 3):
+                raise ValueError(f"warm start for state {s.name!r} must have shape ({n}, 3)")
+        out.append(w)
+    return out
+
+
+def prepare_state(model: SimModel, design: np.ndarray, state: SimState,
+                  options: SolverOptions | None = None) -> StateProblem:
+    """The energy object of one state (for custom solvers / diagnostics)."""
+    options = options or SolverOptions()
+    return StateProblem(model, design, state, device=options.device, projection=options.projection,
+                        exact_contact_hessian=options.exact_contact_hessian)
+
+
+def solve_states(model: SimModel, design: np.ndarray, states: Sequence[SimState],
+                 warm_start: Sequence | Mapping | None = None,
+                 options: SolverOptions | None = None) -> list[StateResult]:
+    """Equilibrium of every state under one design.
+
+    model : SimModel;  design : (m,) per garment face in [x_min, 1];  states : SimState list
+    (each a motion + activation (K,));  warm_start : per state (N, 3) positions or
+    StateResult or None -- a sequence aligned with ``states`` or a mapping by state name;
+    states without one start from the motion's skin-tight garment with bound clutches.
+    Returns one StateResult per state, in order.  Non-converged states are logged by name
+    with their force norm (and raise ConvergenceError with ``on_fail="raise"``); a
+    non-finite energy raises SimulationError naming the state and the term.
+    """
+    options = options or SolverOptions()
+    names = [s.name for s in states]
+    if len(set(names)) != len(names):
+        raise ValueError("state names must be unique")
+    warm = _warm(warm_start, states, model.n_vertices)
+    linsolver = None
+    if options.method == "newton":
+        linsolver = SparseCholesky(model.pattern, use_cholmod=options.use_cholmod)
+    results = []
+    for state, w in zip(states, warm):
+        prob = prepare_state(model, design, state, options)
+        x0 = prob.initial_positions() if w is None else w
+        if options.method == "newton":
+            x, rec = newton_solve(prob, x0, options, linsolver)
+        else:
+            x, rec = lbfgs_solve(prob, x0, options)
+        log.info("state %s: %s %s in %d iterations, %.3f s, max force %.3g N (tol %.3g N)",
+                 state.name, options.method, "converged" if rec.converged else "NOT converged",
+                 rec.iterations, rec.wall_time, rec.force_max, rec.tolerance)
+        results.append(_result(prob, x, rec))
+    failed = [r for r in results if not r.converged]
+    if failed:
+        msg = "; ".join(f"{r.name}: max force {r.convergence.force_max:.3g} N > "
+                        f"{r.convergence.tolerance:.3g} N, |grad| {r.convergence.grad_norm:.3g} N"
+                        for r in failed)
+        if options.on_fail == "raise":
+            raise ConvergenceError(f"states did not converge: {msg}", [r.name for r in failed])
+        log.warning("states did not converge: %s", msg)
+    return results
+
+
+def evaluate_state(model: SimModel, design: np.ndarray, state: SimState, x: np.ndarray,
+                   options: SolverOptions | None = None) -> tuple[float, np.ndarray, dict[str, float]]:
+    """Energy (J), gradient (N, 3) N and energy by term at positions x (N, 3)."""
+    options = options or SolverOptions()
+    prob = prepare_state(model, design, state, options)
+    xt = torch.as_tensor(np.asarray(x, dtype=np.float64), device=prob.device)
+    e, g, _ = prob.evaluate(xt, order=1)
+    terms, _ = prob.terms(xt)
+    return e, g.cpu().numpy(), terms
