@@ -78,12 +78,41 @@ class ClutchesSpec:
 
 
 @dataclass(frozen=True)
+class DesignSpec:
+    """[design]: the objective and BESO parameters (see kgarment.design.beso.BesoParams)."""
+
+    objective: str = "active"
+    target_area: float = 0.15
+    er: float = 0.015
+    ar_max: float = 0.015
+    filter: str = "one_ring"
+    radius: float = 0.02
+    history: bool = True
+    tol: float = 1e-3
+    window: int = 5
+    max_iterations: int = 200
+    protect_attachments: bool = False
+
+
+@dataclass(frozen=True)
+class SolverSpec:
+    """[solver] and [materials]: simulator settings."""
+
+    preset: str = "paper"
+    method: str = "newton"
+    tol: float = 1e-6
+    max_iter: int = 200
+
+
+@dataclass(frozen=True)
 class Problem:
     body: BodySpec = field(default_factory=BodySpec)
     motions: tuple[str, ...] = DEFAULT_MOTIONS
     user_motions: tuple[Motion, ...] = ()
     garment: GarmentSpec = field(default_factory=GarmentSpec)
     clutches: ClutchesSpec | None = None  # None: the garment's default layout
+    design: DesignSpec = field(default_factory=DesignSpec)
+    solver: SolverSpec = field(default_factory=SolverSpec)
     source: Path | None = None
 
     def library(self) -> MotionLibrary:
@@ -115,6 +144,8 @@ class Problem:
         parts = ([f"layout {c.layout} ({c.side})"] if c.layout else []) + ([f"file {c.file}"] if c.file else []) \
             + ([f"{len(c.inline)} inline"] if c.inline else [])
         lines.append(f"clutches: {'; '.join(parts) or 'none'}")
+        lines.append("design: " + ", ".join(f"{k} {v}" for k, v in asdict(self.design).items()))
+        lines.append("solver: " + ", ".join(f"{k} {v}" for k, v in asdict(self.solver).items()))
         return "\n".join(lines)
 
 
@@ -205,7 +236,44 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
             raise unknown("garment", t, template_names())
         garment = GarmentSpec(t, None, (), sub)
     clutches = _clutches(data["clutches"], base) if "clutches" in data else None
-    return Problem(body, names, user, garment, clutches, source)
+    design = _section(DesignSpec, "design", data.get("design", {}), {
+        "objective": ("active", "passive", "compliance"), "filter": ("one_ring", "radius")},
+        {"target_area": (0.01, 1.0), "er": (1e-4, 0.5), "ar_max": (1e-4, 1.0), "radius": (1e-4, 1.0),
+         "tol": (0.0, 1.0), "window": (1, 100), "max_iterations": (1, 100000)})
+    solver = dict(data.get("solver", {}))
+    mats = data.get("materials", {})
+    _check_keys("materials", mats, ("preset",))
+    if "preset" in mats:
+        solver["preset"] = mats["preset"]
+    solver = _section(SolverSpec, "solver", solver, {"preset": ("paper", "reference"), "method": ("newton", "lbfgs")},
+                      {"tol": (1e-14, 1.0), "max_iter": (1, 100000)})
+    return Problem(body, names, user, garment, clutches, design, solver, source)
+
+
+def _section(cls, name: str, d: dict, choices: dict, ranges: dict):
+    """Validate a flat TOML table against a dataclass: known fields, types, choices, ranges."""
+    import dataclasses
+
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    _check_keys(name, d, list(fields))
+    out = {}
+    for k, v in d.items():
+        default = fields[k].default
+        if isinstance(default, bool):
+            if not isinstance(v, bool):
+                raise KgarmentError(f"[{name}] {k} = {v!r}; allowed: true, false")
+        elif isinstance(default, (int, float)):
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise KgarmentError(f"[{name}] {k} = {v!r} must be a number")
+            if isinstance(default, int) and not float(v).is_integer():
+                raise KgarmentError(f"[{name}] {k} = {v!r} must be an integer")
+            v = type(default)(v)
+        if k in choices and v not in choices[k]:
+            raise KgarmentError(f"[{name}] {k} = {v!r}; allowed: {', '.join(choices[k])}")
+        if k in ranges and not ranges[k][0] <= v <= ranges[k][1]:
+            raise KgarmentError(f"[{name}] {k} = {v!r} is outside [{ranges[k][0]:g}, {ranges[k][1]:g}]")
+        out[k] = v
+    return cls(**out)
 
 
 def _clutches(c: dict, base: Path) -> ClutchesSpec:
@@ -284,5 +352,37 @@ def build_garment(problem: Problem, body: Body) -> Garment:
     return garment_from_mask(body, mask, g.mask.stem, g.subdivision, g.attach)
 
 
-__all__ = ["BodySpec", "ClutchesSpec", "GarmentSpec", "build_clutches", "clutch_specs", "PAPER_MOTIONS", "Problem", "build_body", "build_garment",
+__all__ = ["BodySpec", "ClutchesSpec", "DesignSpec", "SolverSpec", "GarmentSpec", "build_clutches", "clutch_specs", "PAPER_MOTIONS", "Problem", "build_body", "build_garment",
            "load_problem", "parse_problem"]
+
+
+def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
+    """The resolved problem as a TOML-ready dict (paths absolute) that ``parse_problem``
+    reads back to an equal problem; clutches are referenced by ``clutch_file`` when given."""
+    b = problem.body
+    body: dict = {"model": b.model}
+    if b.model == "anny":
+        body["phenotype"] = asdict(b.phenotype)
+    else:
+        body["rest"] = str(Path(b.rest).resolve())
+        body["motions"] = {k: str(Path(v).resolve()) for k, v in b.meshes}
+        if b.rig:
+            body["rig"] = str(Path(b.rig).resolve())
+    motions: dict = {"use": list(problem.motions)}
+    if problem.user_motions:
+        motions["define"] = {
+            m.name: {"keyframes": [[{"bone": r.bone, "axis": r.axis if isinstance(r.axis, str) else list(r.axis),
+                                     "degrees": r.degrees} for r in kf] for kf in m.keyframes],
+                     "description": m.description} for m in problem.user_motions}
+    g = problem.garment
+    garment: dict = {"subdivision": g.subdivision}
+    if g.template:
+        garment["template"] = g.template
+    else:
+        garment["mask"] = str(Path(g.mask).resolve())
+        garment["attach"] = list(g.attach)
+    out = {"body": body, "motions": motions, "garment": garment,
+           "design": asdict(problem.design), "solver": asdict(problem.solver)}
+    if clutch_file is not None:
+        out["clutches"] = {"file": str(Path(clutch_file).resolve())}
+    return out

@@ -1,0 +1,49 @@
+"""Every example problem parses, validates and round-trips; its clutches build."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from kgarment.problem import clutch_specs, load_problem, parse_problem, problem_to_dict
+
+EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "examples").glob("*.toml"))
+
+
+def test_there_is_an_example_per_experiment():
+    names = {p.stem for p in EXAMPLES}
+    assert {"arm_flexion", "arm_extension", "arms_forward", "arms_raise", "bend_forward",
+            "sleeve_two_motions", "shirt_three_motions", "long_sleeve_five_motions"} <= names
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
+def test_example_parses_and_round_trips(path, anny_body, tmp_path):
+    p = load_problem(path)
+    assert p.design.target_area in (0.15, 0.20)
+    specs = clutch_specs(p, anny_body)
+    assert specs, "every experiment has clutches"
+    from kgarment.clutch import save_clutches
+
+    save_clutches(tmp_path / "c.toml", specs)
+    again = parse_problem(problem_to_dict(p, tmp_path / "c.toml"), tmp_path)
+    assert again.motions == p.motions and again.garment == p.garment
+    assert again.design == p.design and again.solver == p.solver
+    assert [s.name for s in clutch_specs(again, anny_body)] == [s.name for s in specs]
+
+
+@pytest.mark.parametrize("toml, message", [
+    ("[design]\nobjective = 'maximal'\n", "objective = 'maximal'; allowed: active, passive, compliance"),
+    ("[design]\ntarget_area = 1.5\n", "target_area = 1.5 is outside"),
+    ("[design]\nwindow = 2.5\n", "must be an integer"),
+    ("[materials]\npreset = 'steel'\n", "preset = 'steel'; allowed: paper, reference"),
+    ("[solver]\nmethod = 'cg'\n", "method = 'cg'; allowed: newton, lbfgs"),
+    ("[design]\nbudget = 0.2\n", "unknown field 'budget'"),
+])
+def test_bad_design_sections(toml, message):
+    import tomllib
+
+    from kgarment.errors import KgarmentError
+
+    with pytest.raises(KgarmentError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        parse_problem(tomllib.loads(toml))
