@@ -146,6 +146,48 @@ def cmd_clutches(args) -> int:
     return 0
 
 
+def cmd_simulate(args) -> int:
+    import numpy as np
+
+    from kgarment.problem import build_body, build_clutches, build_garment
+    from kgarment.render import render_scene
+    from kgarment.sim import SimState, SolverOptions, build_model, solve_states
+    from kgarment.simulate import load_design, parse_activation, sim_motions, write_ply
+
+    p = _problem(args)
+    print(p.describe())
+    body = build_body(p)
+    garment = build_garment(p, body)
+    strips = build_clutches(p, body, garment)
+    motions = args.motion or list(p.motions)
+    design = load_design(args.design, garment.n_faces) if args.design else np.ones(garment.n_faces)
+    g = parse_activation(args.clutches, len(strips))
+    out = Path(args.out)
+    targets = [out / f"{m}.ply" for m in motions]
+    if any(t.exists() for t in targets) and not args.force:
+        raise KgarmentError(f"{out} already holds results; use --force to overwrite them")
+    model = build_model(garment.rest_vertices, garment.faces, strips, preset=args.preset)
+    sm = sim_motions(body, garment, motions)
+    states = [SimState.create(sm[m], g, name=f"{m}[{args.clutches}]") for m in motions]
+    opts = SolverOptions(method=args.solver, device=args.device)
+    results = solve_states(model, design, states, options=opts)
+    for m, r in zip(motions, results):
+        gx, cx = model.split(r.x)
+        write_ply(out / f"{m}.ply", gx, garment.faces, {"energy_density": r.garment_density})
+        for c, (strip, x) in enumerate(zip(strips, cx)):
+            write_ply(out / f"{m}_clutch_{strip.name}.ply", x, strip.faces, {"energy_density": r.clutch_density[c]})
+        png = render_scene(out / f"{m}.png", body.vertices(m), body.faces, gx, garment.faces,
+                           face_values=r.garment_density, clutches=[(x, s.faces) for s, x in zip(strips, cx)],
+                           clutch_activation=g, value_label="energy density (J/m^2)",
+                           title=f"{garment.name} - {m} - clutches {args.clutches}")
+        c = r.convergence
+        terms = ", ".join(f"{k} {v:.3g}" for k, v in r.energy.items())
+        print(f"{m}: {'converged' if c.converged else 'NOT CONVERGED'} in {c.iterations} iterations, "
+              f"{c.wall_time:.1f} s; energy {r.total_energy:.4g} J ({terms})")
+        print(f"  wrote {out / f'{m}.ply'} and {png}")
+    return 0 if all(r.converged for r in results) else 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     from kgarment.render.raster import STANDARD_VIEWS, VIEWS
 
@@ -185,6 +227,23 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", default="runs/clutches", help="output folder (default runs/clutches)")
     sp.add_argument("--force", action="store_true", help="overwrite an existing clutch file")
     sp.set_defaults(func=cmd_clutches)
+
+    sp = sub.add_parser("simulate", help="equilibrium of the garment (and clutches) on the posed body")
+    common(sp)
+    sp.add_argument("--motion", action="append", help="motion (repeatable); default: the problem's motions")
+    sp.add_argument("--clutches", default="on", help="activation: on, off, or one value in [0, 1] per clutch (1,0,0.5)")
+    sp.add_argument("--design", help="per-face design file (.npy/.npz/.txt); default: fully reinforced")
+    sp.add_argument("--preset", default="paper", choices=("paper", "reference"), help="material preset")
+    sp.add_argument("--solver", default="newton", choices=("newton", "lbfgs"), help="solver (default newton)")
+    sp.add_argument("--garment", help="garment template name (overrides the problem's)")
+    sp.add_argument("--subdivision", type=int, choices=(0, 1, 2, 3), help="garment subdivision level")
+    sp.add_argument("--out", default="runs/simulate", help="output folder (default runs/simulate)")
+    sp.add_argument("--force", action="store_true", help="overwrite existing results")
+    sp.set_defaults(func=cmd_simulate)
+
+    from kgarment.cli_design import add_parsers
+
+    add_parsers(sub, common)
 
     sp = sub.add_parser("demo", help="the main job on the built-in default (renders the paper's motions on the default shirt)")
     common(sp, problem=False)

@@ -1,0 +1,135 @@
+"""``kgarment design``, ``evaluate`` and ``examples``: the design loop on the command line."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from kgarment.errors import KgarmentError
+
+log = logging.getLogger("kgarment")
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def build_setup(problem, body, garment, strips, device: str = "cpu"):
+    """The design loop's precomputed setup for a problem (model, motions, filter, ...)."""
+    from kgarment.design import BesoParams
+    from kgarment.design.loop import DesignSetup
+    from kgarment.sim import SolverOptions, build_model
+    from kgarment.simulate import sim_motions
+
+    d = problem.design
+    params = BesoParams(**{k: v for k, v in dataclasses.asdict(d).items() if k not in ("objective", "protect_attachments")})
+    use_clutches = strips if d.objective != "passive" else []
+    model = build_model(garment.rest_vertices, garment.faces, use_clutches, preset=problem.solver.preset)
+    s = problem.solver
+    opts = SolverOptions(method=s.method, tol=s.tol, max_iter=s.max_iter, device=device)
+    return DesignSetup(model, sim_motions(body, garment), d.objective, params, opts,
+                       protected=garment.attached.copy() if d.protect_attachments else None)
+
+
+def _expected_iterations(p) -> int:
+    return math.ceil(math.log(p.target_area) / math.log(1 - p.er)) + 2 * p.window
+
+
+def _progress_line(row: dict, motions) -> str:
+    rho = "  ".join(f"{m} {row.get(f'rho[{m}:on]', row.get(f'rho[{m}:none]', float('nan'))):.2f}"
+                    + (f"/{row[f'rho[{m}:off]']:.2f}" if f"rho[{m}:off]" in row else "") for m in motions)
+    return f"area {100 * row['area']:5.1f}%  objective {row['objective']:8.4f}  rho {rho}"
+
+
+def cmd_design(args) -> int:
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from kgarment.clutch import save_clutches
+    from kgarment.cli import _problem
+    from kgarment.design.loop import initial_state, run_loop
+    from kgarment.design.run import load_checkpoint, prepare_run_folder, save_checkpoint
+    from kgarment.problem import build_body, build_clutches, build_garment, clutch_specs, load_problem, problem_to_dict
+
+    if args.resume:
+        run = prepare_run_folder(args.resume, resume=True)
+        p = load_problem(run / "problem.toml")
+    else:
+        p = _problem(args)
+        if args.max_iterations:
+            p = dataclasses.replace(p, design=dataclasses.replace(p.design, max_iterations=args.max_iterations))
+        run = prepare_run_folder(args.out, force=args.force)
+    print(p.describe())
+    body = build_body(p)
+    garment = build_garment(p, body)
+    strips = build_clutches(p, body, garment)
+    if not args.resume:
+        import tomli_w
+
+        specs = clutch_specs(p, body)
+        if specs:
+            save_clutches(run / "clutches.toml", specs, garment.rest_vertices, garment.faces)
+        if p.source:
+            (run / "problem.source.toml").write_text(Path(p.source).read_text())
+        (run / "problem.toml").write_text(tomli_w.dumps(problem_to_dict(p, run / "clutches.toml" if specs else None)))
+        (run / "problem.txt").write_text(p.describe() + "\n")
+    setup = build_setup(p, body, garment, strips, args.device)
+    st = load_checkpoint(run) if args.resume else initial_state(setup)
+    print(f"garment {garment.name}: {garment.n_faces} faces, {len(strips)} clutches, "
+          f"{len(setup.states())} states per iteration; run folder {run}")
+    motions = list(setup.motions)
+    total = _expected_iterations(setup.params)
+    t0 = time.time()
+    with Progress(TextColumn("[bold]it {task.completed:>3}"), BarColumn(), TextColumn("{task.description}"),
+                  TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), disable=args.quiet) as bar:
+        task = bar.add_task("starting", total=total, completed=st.iteration)
+
+        def progress(row):
+            bar.update(task, completed=row["iteration"] + 1, description=_progress_line(row, motions),
+                       total=max(total, row["iteration"] + 2))
+            if row["unconverged_states"]:
+                log.warning("iteration %d: states not converged: %s", row["iteration"], row["unconverged_states"])
+
+        try:
+            run_loop(setup, st, checkpoint=lambda s: save_checkpoint(run, s), progress=progress)
+        except KeyboardInterrupt:
+            print(f"\ninterrupted after iteration {st.iteration - 1}; continue with: kgarment design --resume {run}")
+            return 130
+    from kgarment.design.report import finish_run
+
+    paths = finish_run(run, setup, st, body, garment, strips)
+    last = st.metrics[-1]
+    print(f"\n{len(st.metrics)} iterations in {time.time() - t0:.0f} s; final {_progress_line(last, motions)}")
+    print(f"islands {last['islands']} ({last['islands_with_clutches']} counting clutches as links); "
+          f"clutch ends on reinforcement {last['clutch_ends_supported']}/{last['clutch_ends']}")
+    print(f"results in {run}/: metrics.csv, metrics.json, progress.png, designs.npz, final/")
+    for path in paths:
+        print(f"  {path}")
+    return 0
+
+
+def cmd_examples(args) -> int:
+    files = sorted(EXAMPLES.glob("*.toml"))
+    if not files:
+        raise KgarmentError(f"no example problems found in {EXAMPLES}")
+    for f in files:
+        first = f.read_text().splitlines()[0].lstrip("# ")
+        print(f"{str(f):60s} {first}")
+    return 0
+
+
+def add_parsers(sub, common) -> None:
+    sp = sub.add_parser("design", help="automatic design (BESO) of the reinforcement; checkpoints every iteration")
+    common(sp)
+    sp.add_argument("--out", default="runs/design", help="run folder (default runs/design)")
+    sp.add_argument("--resume", metavar="RUN", help="continue a run folder where it stopped")
+    sp.add_argument("--force", action="store_true", help="replace an existing run folder")
+    sp.add_argument("--subdivision", type=int, choices=(0, 1, 2, 3), help="garment subdivision level (resolution)")
+    sp.add_argument("--garment", help="garment template name (overrides the problem's)")
+    sp.add_argument("--motion", action="append", help="motion (repeatable); default: the problem's motions")
+    sp.add_argument("--max-iterations", type=int, help="stop after this many iterations")
+    sp.set_defaults(func=cmd_design)
+
+    sp = sub.add_parser("examples", help="list the example problem files (one per experiment of the paper)")
+    sp.set_defaults(func=cmd_examples)
