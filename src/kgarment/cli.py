@@ -97,19 +97,31 @@ def cmd_render(args) -> int:
 
 
 def cmd_demo(args) -> int:
-    import dataclasses
+    """The main job: design the three-motion shirt (resumes or reports an existing run)."""
+    import argparse
 
-    from kgarment.body.motions import PAPER_MOTIONS
-    from kgarment.problem import Problem
+    from kgarment.cli_design import EXAMPLES, cmd_design
 
-    p = Problem()
-    p = dataclasses.replace(p, motions=PAPER_MOTIONS)
-    print(p.describe())
-    paths = _render_all(p, Path(args.out), ("front", "back", "left", "right"))
-    print(f"\nrendered the default body, the paper's five motions and the default shirt into {args.out}/:")
-    for path in paths:
-        print(f"  {path}")
-    return 0
+    out = Path(args.out)
+    ck = out / "checkpoint.npz"
+    if ck.is_file():
+        import numpy as np
+
+        with np.load(ck) as z:
+            done = bool(z["done"])
+        if done and not args.force:
+            print(f"{out} already holds a finished design (use --force to redo it); results:")
+            for f in [out / "metrics.csv", out / "progress.png"] + sorted((out / "final").glob("*")):
+                print(f"  {f}")
+            return 0
+    problem = EXAMPLES / "shirt_three_motions.toml"
+    ns = argparse.Namespace(problem=str(problem), out=str(out), force=args.force,
+                            resume=str(out) if ck.is_file() and not args.force else None,
+                            subdivision=args.subdivision, garment=None, motion=None,
+                            max_iterations=args.max_iterations, device=args.device, quiet=args.quiet)
+    if ns.resume:
+        print(f"resuming the unfinished run in {out}")
+    return cmd_design(ns)
 
 
 def cmd_clutches(args) -> int:
@@ -245,9 +257,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_parsers(sub, common)
 
-    sp = sub.add_parser("demo", help="the main job on the built-in default (renders the paper's motions on the default shirt)")
+    sp = sub.add_parser("demo", help="the main job: design the three-motion shirt (examples/shirt_three_motions.toml)")
     common(sp, problem=False)
-    sp.add_argument("--out", default="runs/demo", help="output folder (default runs/demo)")
+    sp.add_argument("--out", default="runs/demo", help="run folder (default runs/demo); an unfinished run is resumed")
+    sp.add_argument("--subdivision", type=int, default=0, choices=(0, 1, 2, 3),
+                    help="garment resolution (default 0; 1 is the default elsewhere, 2 matches the paper)")
+    sp.add_argument("--max-iterations", type=int, help="stop after this many iterations")
+    sp.add_argument("--force", action="store_true", help="start over, replacing the run folder")
     sp.set_defaults(func=cmd_demo)
     return ap
 
@@ -259,6 +275,8 @@ def main(argv=None) -> int:
     logging.basicConfig(level=level, format="%(message)s")
     for noisy in ("anny", "warp", "matplotlib", "PIL"):
         logging.getLogger(noisy).setLevel(max(level, logging.WARNING))
+    if args.verbose == 0 and getattr(args, "command", None) in ("design", "demo"):
+        logging.getLogger("kgarment.sim").setLevel(logging.WARNING)  # the progress bar says enough
     if not getattr(args, "command", None):
         ap.print_help()
         return 2

@@ -131,5 +131,90 @@ def add_parsers(sub, common) -> None:
     sp.add_argument("--max-iterations", type=int, help="stop after this many iterations")
     sp.set_defaults(func=cmd_design)
 
+    add_evaluate_parser(sub, common)
+
     sp = sub.add_parser("examples", help="list the example problem files (one per experiment of the paper)")
     sp.set_defaults(func=cmd_examples)
+
+
+def _design_source(text: str):
+    """'RUN' (final design), 'RUN@K' (iteration K) -> (run folder, iteration or None)."""
+    run, _, it = text.partition("@")
+    run = Path(run)
+    if not (run / "problem.toml").is_file():
+        raise KgarmentError(f"{run} is not a run folder (no problem.toml); give RUN or RUN@ITERATION")
+    if it and not it.isdigit():
+        raise KgarmentError(f"iteration {it!r} in {text!r} must be a number")
+    return run, (int(it) if it else None)
+
+
+def evaluate_design(problem, design: np.ndarray, device: str = "cpu") -> list[dict]:
+    """rho ON/OFF (or the objective's states) of ``design`` (m,) on the problem's motions:
+    one row per motion and state with the energies of the design and of the full garment."""
+    from kgarment.design.metrics import Stored, relative_energy_density
+    from kgarment.problem import build_body, build_clutches, build_garment
+    from kgarment.sim import solve_states
+
+    body = build_body(problem)
+    garment = build_garment(problem, body)
+    if len(design) != garment.n_faces:
+        raise KgarmentError(f"the design has {len(design)} faces, the problem's garment {garment.n_faces}")
+    strips = build_clutches(problem, body, garment)
+    setup = build_setup(problem, body, garment, strips, device)
+    keyed = setup.states()
+    states = [s for _, s in keyed]
+    full = solve_states(setup.model, np.ones(garment.n_faces), states, options=setup.solver)
+    mine = solve_states(setup.model, design, states, warm_start=[r.x for r in full], options=setup.solver)
+    rows = []
+    for (key, _), rf, rd in zip(keyed, full, mine):
+        cl = setup.objective != "passive"
+        sf = Stored(rf.garment_energy, float(sum(e.sum() for e in rf.clutch_energy)) if cl else 0.0)
+        sd = Stored(rd.garment_energy, float(sum(e.sum() for e in rd.clutch_energy)) if cl else 0.0)
+        rows.append({"motion": key[0], "state": key[1],
+                     "rho": relative_energy_density(design, setup.areas, sd, sf, setup.clutch_area()),
+                     "energy": float(sd.face_energy[design > 0.5].sum() + sd.clutch_energy),
+                     "energy_full": float(sf.face_energy.sum() + sf.clutch_energy),
+                     "converged": bool(rf.converged and rd.converged)})
+    return rows
+
+
+def cmd_evaluate(args) -> int:
+    import json
+
+    from kgarment.design.run import load_design_history
+    from kgarment.problem import load_problem
+
+    run, it = _design_source(args.design)
+    p = load_problem(run / "problem.toml")
+    if args.motion:
+        lib = p.library()
+        for m in args.motion:
+            lib.get(m)
+        p = dataclasses.replace(p, motions=tuple(args.motion))
+    hist = load_design_history(run)
+    k = len(hist) - 1 if it is None else it
+    if not 0 <= k < len(hist):
+        raise KgarmentError(f"{run} has iterations 0..{len(hist) - 1}; asked for {k}")
+    from kgarment.design.beso import X_MIN
+
+    design = np.where(hist[k], 1.0, X_MIN)
+    area = hist[k].mean()
+    print(f"design: {run} iteration {k} ({100 * area:.1f}% of faces reinforced)")
+    rows = evaluate_design(p, design, args.device)
+    print(f"{'motion':24s} {'state':6s} {'rho':>7s} {'E design (J)':>13s} {'E full (J)':>11s}")
+    for r in rows:
+        flag = "" if r["converged"] else "  (NOT converged)"
+        print(f"{r['motion']:24s} {r['state']:6s} {r['rho']:7.3f} {r['energy']:13.5g} {r['energy_full']:11.5g}{flag}")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"run": str(run), "iteration": k, "rows": rows}, indent=1))
+        print(f"wrote {args.json}")
+    return 0
+
+
+def add_evaluate_parser(sub, common) -> None:
+    sp = sub.add_parser("evaluate", help="evaluate a design (any iteration of a run) on any motions: rho ON/OFF")
+    sp.add_argument("design", help="run folder (its final design) or RUN@ITERATION")
+    sp.add_argument("--motion", action="append", help="motion to evaluate on (repeatable); default: the run's")
+    sp.add_argument("--json", help="also write the table as JSON to this file")
+    sp.add_argument("--device", default="cpu", help="torch device (default cpu)")
+    sp.set_defaults(func=cmd_evaluate)

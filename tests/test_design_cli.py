@@ -1,0 +1,96 @@
+"""End to end: tiny design runs of every objective from the command line, resume, evaluate."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+SLEEVE = """
+[garment]
+template = "arm_sleeve.right"
+subdivision = 0
+[motions]
+use = ["arm_flexion.right"]
+[clutches]
+layout = "arm_flexion"
+[materials]
+preset = "reference"
+[design]
+objective = "{objective}"
+target_area = 0.8
+er = 0.1
+max_iterations = {iterations}
+"""
+
+
+def _cli(args, cwd):
+    r = subprocess.run([sys.executable, "-m", "kgarment.cli", *args], capture_output=True, text=True, cwd=cwd)
+    return r.returncode, r.stdout, r.stderr
+
+
+@pytest.mark.parametrize("objective", ["active", "passive", "compliance"])
+def test_tiny_design_run(tmp_path, anny_body, objective):
+    (tmp_path / "p.toml").write_text(SLEEVE.format(objective=objective, iterations=3))
+    rc, out, err = _cli(["design", "p.toml", "--out", "run"], tmp_path)
+    assert rc == 0, err
+    run = tmp_path / "run"
+    for f in ("problem.toml", "problem.txt", "checkpoint.npz", "designs.npz", "metrics.csv", "metrics.json",
+              "progress.png", "final/design.npz", "final/design.ply", "final/design.obj", "final/design.png"):
+        assert (run / f).is_file(), f
+    rows = json.loads((run / "metrics.json").read_text())
+    assert [r["iteration"] for r in rows] == [0, 1, 2]
+    assert rows[0]["area"] == pytest.approx(1.0)
+    assert rows[1]["area"] < 1.0
+    states = ["on", "off"] if objective == "active" else (["on"] if objective == "compliance" else ["none"])
+    for s in states:
+        assert f"rho[arm_flexion.right:{s}]" in rows[0]
+        assert (run / "final" / f"energy_arm_flexion.right_{s}.png").is_file()
+    # the designs are stored compactly and any iteration can be taken as a design
+    from kgarment.design.run import load_design_history
+
+    hist = load_design_history(run)
+    assert hist.shape[0] == 3 and hist[0].all()
+    assert (run / "designs.npz").stat().st_size < 10_000
+    # an existing run is never overwritten without --force
+    rc, _, err = _cli(["design", "p.toml", "--out", "run"], tmp_path)
+    assert rc == 2 and "--resume" in err and "--force" in err
+
+
+def test_resume_from_the_command_line_and_evaluate(tmp_path, anny_body):
+    (tmp_path / "p.toml").write_text(SLEEVE.format(objective="active", iterations=4))
+    rc, _, err = _cli(["design", "p.toml", "--out", "whole"], tmp_path)
+    assert rc == 0, err
+    # Ctrl-C in the middle of a run leaves a resumable run folder
+    import signal
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-m", "kgarment.cli", "design", "p.toml", "--out", "part"], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    metrics = tmp_path / "part" / "metrics.json"
+    t0 = time.time()
+    while time.time() - t0 < 120 and proc.poll() is None:
+        if metrics.is_file() and len(json.loads(metrics.read_text() or "[]")) >= 2:
+            proc.send_signal(signal.SIGINT)
+            break
+        time.sleep(0.05)
+    out, err = proc.communicate(timeout=120)
+    if proc.returncode == 130:
+        assert "kgarment design --resume" in out
+    else:  # the run finished before the signal arrived; resuming a finished run is a no-op
+        assert proc.returncode == 0, err
+    rc, out, err = _cli(["design", "--resume", "part"], tmp_path)
+    assert rc == 0, err
+    from kgarment.design.run import load_design_history
+
+    np.testing.assert_array_equal(load_design_history(tmp_path / "whole"), load_design_history(tmp_path / "part"))
+    rc, out, err = _cli(["evaluate", "whole@1", "--json", "e.json"], tmp_path)
+    assert rc == 0, err
+    rows = json.loads((tmp_path / "e.json").read_text())["rows"]
+    assert {r["state"] for r in rows} == {"on", "off"}
+    assert all(np.isfinite(r["rho"]) and r["rho"] > 0 for r in rows)
+    rc, _, err = _cli(["evaluate", "nowhere"], tmp_path)
+    assert rc == 2 and "not a run folder" in err
