@@ -1,0 +1,71 @@
+"""Benchmark: the whole three-motion shirt design at subdivision 0 and 1.
+
+Runs `kgarment design examples/shirt_three_motions.toml --subdivision S` in a child process
+per resolution and prints wall time, iterations, peak memory (RSS) and the final rho per
+motion and state. Targets on a 2-core machine: subdivision 0 in at most 5 minutes,
+subdivision 1 in at most 30 minutes.
+
+    python benchmarks/design.py [--subdivisions 0 1] [--max-iterations N] [--keep DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CHILD = """
+import resource, sys
+from kgarment.cli import main
+rc = main(sys.argv[1:])
+print("PEAK_RSS_KB", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+sys.exit(rc)
+"""
+
+
+def run(sub: int, out: Path, max_iterations: int | None) -> dict:
+    args = [sys.executable, "-c", CHILD, "-q", "design", str(ROOT / "examples" / "shirt_three_motions.toml"),
+            "--subdivision", str(sub), "--out", str(out), "--force"]
+    if max_iterations:
+        args += ["--max-iterations", str(max_iterations)]
+    t0 = time.time()
+    r = subprocess.run(args, capture_output=True, text=True)
+    wall = time.time() - t0
+    if r.returncode != 0:
+        raise SystemExit(f"subdivision {sub} failed:\n{r.stderr[-3000:]}")
+    peak = int(next(line.split()[1] for line in r.stdout.splitlines() if line.startswith("PEAK_RSS_KB")))
+    rows = json.loads((out / "metrics.json").read_text())
+    last = rows[-1]
+    return {"subdivision": sub, "wall_s": wall, "iterations": len(rows), "peak_rss_mb": peak / 1024,
+            "area": last["area"], "islands": last["islands"],
+            "rho": {k[4:-1]: v for k, v in last.items() if k.startswith("rho[")},
+            "solver_s": sum(r["seconds"] for r in rows)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--subdivisions", type=int, nargs="+", default=[0, 1])
+    ap.add_argument("--max-iterations", type=int)
+    ap.add_argument("--keep", help="keep the run folders here")
+    args = ap.parse_args()
+    base = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="kgarment-bench-"))
+    targets = {0: 300.0, 1: 1800.0}
+    for sub in args.subdivisions:
+        res = run(sub, base / f"sub{sub}", args.max_iterations)
+        t = targets.get(sub)
+        ratio = f" ({res['wall_s'] / t:.2f} x the {t / 60:.0f}-minute target)" if t else ""
+        print(f"subdivision {sub}: {res['wall_s']:.0f} s{ratio}, {res['iterations']} iterations, "
+              f"peak RSS {res['peak_rss_mb']:.0f} MB, final area {100 * res['area']:.1f}%, islands {res['islands']}")
+        for k, v in res["rho"].items():
+            print(f"    rho {k:22s} {v:.3f}")
+    print(f"run folders in {base}")
+
+
+if __name__ == "__main__":
+    main()
