@@ -71,3 +71,18 @@ def test_resume_is_bit_identical(tmp_path):
     strip = lambda rows: [{k: v for k, v in r.items() if k != "seconds"} for r in rows]  # noqa: E731
     assert strip(whole.metrics) == strip(resumed.metrics)
     np.testing.assert_array_equal(whole.design, resumed.design)
+
+
+def test_protected_faces(anny_body):
+    from kgarment.cli_design import protected_faces
+    from kgarment.clutch import build_clutch
+    from kgarment.clutch.layouts import default_layout
+    from kgarment.garment import make_garment
+
+    g = make_garment(anny_body, "arm_sleeve.right", 0)
+    strips = [build_clutch(s, g.rest_vertices, g.faces) for s in default_layout("arm_flexion", anny_body)]
+    assert protected_faces(g, strips, False, 0.0) is None
+    np.testing.assert_array_equal(protected_faces(g, strips, True, 0.0), g.attached)
+    near = protected_faces(g, strips, False, 0.015)
+    anchors = strips[0].bind_face[strips[0].anchors]
+    assert near[anchors].all() and near.mean() < 0.2

@@ -244,7 +244,7 @@ def build_parser() -> argparse.ArgumentParser:
     common(sp)
     sp.add_argument("--motion", action="append", help="motion (repeatable); default: the problem's motions")
     sp.add_argument("--clutches", default="on", help="activation: on, off, or one value in [0, 1] per clutch (1,0,0.5)")
-    sp.add_argument("--design", help="per-face design file (.npy/.npz/.txt); default: fully reinforced")
+    sp.add_argument("--design", help="per-face design: .npy/.npz/.txt file, a run folder or RUN@ITERATION; default: fully reinforced")
     sp.add_argument("--preset", default="paper", choices=("paper", "reference"), help="material preset")
     sp.add_argument("--solver", default="newton", choices=("newton", "lbfgs"), help="solver (default newton)")
     sp.add_argument("--garment", help="garment template name (overrides the problem's)")

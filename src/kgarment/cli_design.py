@@ -24,13 +24,26 @@ def build_setup(problem, body, garment, strips, device: str = "cpu"):
     from kgarment.simulate import sim_motions
 
     d = problem.design
-    params = BesoParams(**{k: v for k, v in dataclasses.asdict(d).items() if k not in ("objective", "protect_attachments")})
+    params = BesoParams(**{k: v for k, v in dataclasses.asdict(d).items()
+                           if k not in ("objective", "protect_attachments", "protect_clutch_margin")})
     use_clutches = strips if d.objective != "passive" else []
     model = build_model(garment.rest_vertices, garment.faces, use_clutches, preset=problem.solver.preset)
     s = problem.solver
     opts = SolverOptions(method=s.method, tol=s.tol, max_iter=s.max_iter, device=device)
     return DesignSetup(model, sim_motions(body, garment), d.objective, params, opts,
-                       protected=garment.attached.copy() if d.protect_attachments else None)
+                       protected=protected_faces(garment, use_clutches, d.protect_attachments, d.protect_clutch_margin))
+
+
+def protected_faces(garment, strips, attachments: bool, margin: float):
+    """(m,) bool faces kept reinforced: attachment rings and/or faces whose centroid is
+    within ``margin`` metres of a clutch anchor; None when nothing is protected."""
+    keep = garment.attached.copy() if attachments else np.zeros(garment.n_faces, bool)
+    if margin > 0 and strips:
+        cent = garment.rest_vertices[garment.faces].mean(axis=1)
+        anchors = np.concatenate([c.vertices[c.anchors] for c in strips])
+        d = np.linalg.norm(cent[:, None, :] - anchors[None, :, :], axis=2).min(axis=1)
+        keep |= d <= margin
+    return keep if keep.any() else None
 
 
 def _expected_iterations(p) -> int:

@@ -92,6 +92,7 @@ class DesignSpec:
     window: int = 5
     max_iterations: int = 200
     protect_attachments: bool = False
+    protect_clutch_margin: float = 0.0  # metres around clutch anchors kept reinforced (0: off)
 
 
 @dataclass(frozen=True)
@@ -239,7 +240,8 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
     design = _section(DesignSpec, "design", data.get("design", {}), {
         "objective": ("active", "passive", "compliance"), "filter": ("one_ring", "radius")},
         {"target_area": (0.01, 1.0), "er": (1e-4, 0.5), "ar_max": (1e-4, 1.0), "radius": (1e-4, 1.0),
-         "tol": (0.0, 1.0), "window": (1, 100), "max_iterations": (1, 100000)})
+         "tol": (0.0, 1.0), "window": (1, 100), "max_iterations": (1, 100000),
+         "protect_clutch_margin": (0.0, 0.2)})
     solver = dict(data.get("solver", {}))
     mats = data.get("materials", {})
     _check_keys("materials", mats, ("preset",))

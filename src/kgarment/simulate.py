@@ -60,7 +60,22 @@ def write_ply(path, vertices: np.ndarray, faces: np.ndarray, face_values: dict[s
 
 
 def load_design(path, n_faces: int) -> np.ndarray:
-    """A design (n_faces,) in [x_min, 1] from .npy / .npz ('design' array) / .txt."""
+    """A design (n_faces,) in [x_min, 1] from .npy / .npz ('design' array) / .txt, or a
+    run folder ``RUN`` (its final design) / ``RUN@K`` (the design of iteration K)."""
+    run, _, it = str(path).partition("@")
+    if Path(run).is_dir():
+        from kgarment.design.beso import X_MIN
+        from kgarment.design.run import load_design_history
+
+        hist = load_design_history(run)
+        if it and not it.isdigit():
+            raise KgarmentError(f"iteration {it!r} in {path!r} must be a number")
+        k = int(it) if it else len(hist) - 1
+        if not 0 <= k < len(hist):
+            raise KgarmentError(f"{run} has iterations 0..{len(hist) - 1}; asked for {k}")
+        if hist.shape[1] != n_faces:
+            raise KgarmentError(f"the design in {run} has {hist.shape[1]} faces, the garment {n_faces}")
+        return np.where(hist[k], 1.0, X_MIN)
     path = Path(path)
     if not path.is_file():
         raise KgarmentError(f"design file not found: {path}")
