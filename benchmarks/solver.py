@@ -1,0 +1,117 @@
+"""Benchmark: Newton (CHOLMOD) against the paper's L-BFGS on the three-motion shirt.
+
+The short-sleeve shirt with its three back clutches, 3 motions x {ON, OFF} = 6 states, at
+subdivision 0 and 1, in one process: a cold solve of a half-reinforced design, then a warm
+start after a 1.5% change of the design (the BESO step), Newton against L-BFGS to the same
+force tolerance. Prints wall time, iterations, peak memory and the speed ratio. L-BFGS
+gets a time budget per state (default 30 minutes in all); when it does not reach the
+tolerance, the force it reached is printed and the ratio is a lower bound.
+
+Targets (2 cores): Newton >= 20x faster than L-BFGS per equilibrium; a warm-started
+6-state solve at subdivision 1 in <= 10 s.
+
+    python benchmarks/solver.py [--subdivisions 0 1] [--preset paper] [--lbfgs-budget 1800]
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import resource
+import time
+
+import numpy as np
+
+
+def setup(sub: int, preset: str):
+    from kgarment.body import builtin_motions, load_anny_body
+    from kgarment.clutch import MeshTopology, build_clutch
+    from kgarment.clutch.layouts import default_layout
+    from kgarment.garment import make_garment
+    from kgarment.sim import SimState, build_model
+    from kgarment.simulate import sim_motions
+
+    lib = builtin_motions()
+    body = load_anny_body([lib[m] for m in ("arms_forward", "arms_raise", "bend_forward")])
+    g = make_garment(body, "short_sleeve_shirt", sub)
+    topo = MeshTopology(g.rest_vertices, g.faces)
+    strips = [build_clutch(s, g.rest_vertices, g.faces, topology=topo) for s in default_layout("shirt", body)]
+    model = build_model(g.rest_vertices, g.faces, strips, preset=preset)
+    motions = sim_motions(body, g)
+    states = [SimState.create(m, np.full(len(strips), a), name=f"{n}[{'on' if a else 'off'}]")
+              for n, m in motions.items() for a in (1.0, 0.0)]
+    return g, model, states
+
+
+def designs(g, x_min: float, seed: int = 0):
+    """A half-reinforced design (faces above the median height... of a smooth field) and
+    the same design with 1.5% of its faces flipped at the boundary, like a BESO step."""
+    from kgarment.garment.topology import face_adjacency
+
+    c = g.rest_vertices[g.faces].mean(1)
+    field = np.sin(40 * c[:, 0]) + np.cos(30 * c[:, 2]) + c[:, 1]
+    d0 = np.where(field > np.median(field), 1.0, x_min)
+    adj = face_adjacency(g.faces)
+    edge = (adj @ (d0 > 0.5).astype(float) > 0) & (d0 < 0.5)
+    rng = np.random.default_rng(seed)
+    flip = rng.choice(np.flatnonzero(edge), size=min(edge.sum(), int(0.015 * len(d0))), replace=False)
+    d1 = d0.copy()
+    d1[flip] = 1.0
+    return d0, d1
+
+
+def timed(model, design, states, opts, warm=None):
+    from kgarment.sim import solve_states
+
+    t0 = time.time()
+    res = solve_states(model, design, states, warm_start=warm, options=opts)
+    return time.time() - t0, res
+
+
+def main() -> None:
+    from kgarment.sim import SolverOptions
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--subdivisions", type=int, nargs="+", default=[0, 1])
+    ap.add_argument("--preset", default="paper", choices=("paper", "reference"))
+    ap.add_argument("--lbfgs-budget", type=float, default=1800.0, help="seconds for all L-BFGS solves of one size")
+    ap.add_argument("--lbfgs-states", type=int, default=6, help="how many of the 6 states L-BFGS solves")
+    args = ap.parse_args()
+    logging.basicConfig(level=logging.WARNING)
+    for sub in args.subdivisions:
+        g, model, states = setup(sub, args.preset)
+        d0, d1 = designs(g, model.preset.x_min)
+        newton = SolverOptions(method="newton")
+        t_cold, cold = timed(model, d0, states, newton)
+        t_warm, warm = timed(model, d1, states, newton, warm=[r.x for r in cold])
+        it_cold = sum(r.convergence.iterations for r in cold)
+        it_warm = sum(r.convergence.iterations for r in warm)
+        ok = all(r.converged for r in cold + warm)
+        print(f"subdivision {sub}: {g.n_faces} garment faces, {model.n_vertices} vertices, 6 states, preset {args.preset}")
+        print(f"  Newton cold {t_cold:7.2f} s ({it_cold} iterations), warm after a 1.5% change {t_warm:6.2f} s "
+              f"({it_warm} iterations){'' if ok else '  NOT all converged'}; target warm <= 10 s at subdivision 1")
+        per_newton = t_warm / len(states)
+        n_l = min(args.lbfgs_states, len(states))
+        budget = args.lbfgs_budget / n_l
+        # calibrate the cost of one L-BFGS iteration, then give each state its time budget
+        t_cal, cal = timed(model, d1, states[:1], SolverOptions(method="lbfgs", lbfgs_max_iter=20),
+                           warm=[cold[0].x])
+        per_it = t_cal / max(cal[0].convergence.iterations, 1)
+        lb = SolverOptions(method="lbfgs", lbfgs_max_iter=max(20, int(budget / per_it)))
+        t_l, res_l = timed(model, d1, states[:n_l], lb, warm=[r.x for r in cold[:n_l]])
+        per_l = t_l / n_l
+        reached = all(r.converged for r in res_l)
+        worst = max(r.convergence.force_max for r in res_l)
+        tol = res_l[0].convergence.tolerance
+        ratio = per_l / per_newton
+        print(f"  L-BFGS warm {per_l:7.2f} s per state ({sum(r.convergence.iterations for r in res_l)} iterations "
+              f"over {n_l} states), {'reached' if reached else 'did NOT reach'} the tolerance "
+              f"(max force {worst:.3g} N, tol {tol:.3g} N)")
+        print(f"  Newton is {ratio:.1f}x faster per equilibrium{'' if reached else ' (a lower bound)'}; target >= 20x")
+        rel = max(abs(a.total_energy - b.total_energy) / abs(b.total_energy) for a, b in zip(res_l, warm[:n_l]))
+        print(f"  energy agreement L-BFGS vs Newton: {rel:.2e} relative")
+    print(f"peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+
+
+if __name__ == "__main__":
+    main()
