@@ -1,0 +1,54 @@
+"""Fabrication: from a design to cut files, as the paper's authors did by hand in Blender.
+
+Stages (each a module, arrays in and frozen dataclasses out):
+
+``cleanup``    islands, holes and thin features removed on the face graph (clutch ends
+               and attachment rings protected)
+``patches``    the reinforcement as edge-connected manifold pieces, and seams cut in them
+``flatten``    LSCM then ARAP (libigl), scaled to keep lengths; distortion measures
+``patterns``   pieces flattened, and cut along short seams while too distorted
+``outline``    the jagged boundary smoothed into curves
+``layout``     the 1:1 cutting sheet in millimetres with buttons, arrows and notches
+``cutfiles``   SVG and DXF; ``preview`` the tiled PDF; ``export3d`` GLB/OBJ/PLY;
+``bom``        bill of materials and report; ``pipeline`` all of it
+
+Typical use::
+
+    fab = fabricate(garment, strips, design)      # design (m,): 1 reinforced, 1e-3 soft
+    write_fabrication(fab, "runs/fab")
+"""
+
+from kgarment.fabricate.cleanup import CleanupOptions, CleanupResult, clean_design
+from kgarment.fabricate.flatten import Flattening, flatten
+from kgarment.fabricate.layout import Piece, Sheet, layout_sheet
+from kgarment.fabricate.patches import PatchMesh, patch_mesh, split_patches
+from kgarment.fabricate.patterns import Patch, PatternOptions, PatternSet, Seam, make_patterns
+from kgarment.fabricate.pipeline import (
+    Fabrication,
+    FabricationOptions,
+    fabricate,
+    write_fabrication,
+)
+
+__all__ = [
+    "CleanupOptions",
+    "CleanupResult",
+    "Fabrication",
+    "FabricationOptions",
+    "Flattening",
+    "Patch",
+    "PatchMesh",
+    "PatternOptions",
+    "PatternSet",
+    "Piece",
+    "Seam",
+    "Sheet",
+    "clean_design",
+    "fabricate",
+    "flatten",
+    "layout_sheet",
+    "make_patterns",
+    "patch_mesh",
+    "split_patches",
+    "write_fabrication",
+]

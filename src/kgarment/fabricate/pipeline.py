@@ -1,0 +1,105 @@
+"""The fabrication pipeline: clean-up, patches and flattening, layout, and every output file."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from kgarment.errors import KgarmentError
+from kgarment.fabricate.cleanup import CleanupOptions, CleanupResult, clean_design
+from kgarment.fabricate.layout import Sheet, layout_sheet
+from kgarment.fabricate.patterns import PatternOptions, PatternSet, make_patterns
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class FabricationOptions:
+    """cleanup, patterns : the two stages' options; smooth_iterations : Taubin iterations on
+    the outlines (0: raw triangle edges); sheet_width : mm; paper : "a4" or "letter"."""
+
+    cleanup: CleanupOptions = field(default_factory=CleanupOptions)
+    patterns: PatternOptions = field(default_factory=PatternOptions)
+    smooth_iterations: int = 10
+    sheet_width: float = 600.0
+    paper: str = "a4"
+
+    def __post_init__(self):
+        from kgarment.fabricate.preview import PAPERS
+
+        if self.paper not in PAPERS:
+            raise KgarmentError(f"paper {self.paper!r}; allowed: {', '.join(PAPERS)}")
+        if not self.sheet_width > 0:
+            raise KgarmentError(f"sheet width {self.sheet_width!r} mm must be > 0")
+
+
+@dataclass(frozen=True)
+class Fabrication:
+    """Everything the fabrication step made.
+
+    garment : the Garment; strips : its clutches; design : (m,) float, the design as given
+    (1 reinforced, 1e-3 soft); cleanup : what the clean-up did; patterns : the flat patches
+    and seams; sheet : the cutting layout (mm); options : the options used.
+    """
+
+    garment: object
+    strips: tuple
+    design: np.ndarray
+    cleanup: CleanupResult
+    patterns: PatternSet
+    sheet: Sheet
+    options: FabricationOptions
+
+    @property
+    def clean_design(self) -> np.ndarray:
+        """(m,) float: the cleaned design in the design loop's values (1 or 1e-3)."""
+        from kgarment.design.beso import X_MIN
+
+        return np.where(self.cleanup.after, 1.0, X_MIN)
+
+
+def fabricate(garment, strips, design: np.ndarray, options: FabricationOptions = FabricationOptions(),
+              title: str = "") -> Fabrication:
+    """Clean ``design`` (m,) (> 0.5 = reinforced) on ``garment`` (a Garment, with its clutch
+    strips), cut the reinforcement into flat patches and lay them out at 1:1."""
+    design = np.asarray(design, dtype=np.float64).reshape(-1)
+    if design.shape != (garment.n_faces,):
+        raise KgarmentError(f"the design has {design.size} faces, the garment {garment.name!r} {garment.n_faces}")
+    strips = tuple(strips)
+    c = clean_design(garment.faces, garment.rest_vertices, design, strips, garment.attached, options.cleanup)
+    if not c.after.any():
+        raise KgarmentError("the design has no reinforced face left to cut (after the clean-up)")
+    pats = make_patterns(garment.rest_vertices, garment.faces, c.after, options.patterns)
+    log.info("%d patches, %d seams", len(pats.patches), len(pats.seams))
+    sheet = layout_sheet(pats, garment, strips, options.sheet_width, smooth_iterations=options.smooth_iterations,
+                         title=title or f"kgarment {garment.name}")
+    return Fabrication(garment, strips, design, c, pats, sheet, options)
+
+
+def write_fabrication(fab: Fabrication, out, evaluation=None) -> list[Path]:
+    """Write every file into the folder ``out`` (created; existing files are replaced):
+    cut_patterns.svg/.dxf/.pdf, design_clean.glb/.obj/.ply/.npz, bom.md/.csv, report.md/.json.
+    evaluation : (rows before, rows after) from ``evaluate_design``, or None."""
+    from kgarment.fabricate.bom import write_bom, write_report
+    from kgarment.fabricate.cutfiles import write_dxf, write_svg
+    from kgarment.fabricate.export3d import write_3d
+    from kgarment.fabricate.preview import write_pdf
+    from kgarment.paths import atomic_save_npz
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    g = fab.garment
+    files = [write_svg(fab.sheet, out / "cut_patterns.svg"), write_dxf(fab.sheet, out / "cut_patterns.dxf"),
+             write_pdf(fab.sheet, out / "cut_patterns.pdf", fab.options.paper)]
+    files += write_3d(g.rest_vertices, g.faces, fab.patterns, fab.strips, out / "design_clean")
+    from kgarment.fabricate.export3d import face_patch_index
+
+    atomic_save_npz(out / "design_clean.npz", design=fab.clean_design, original=fab.design, faces=g.faces,
+                    rest_vertices=g.rest_vertices, patch=face_patch_index(g.n_faces, fab.patterns))
+    files.append(out / "design_clean.npz")
+    files += write_bom(fab, out)
+    files += write_report(fab, out, evaluation, files + [out / "report.md", out / "report.json"])
+    return files
