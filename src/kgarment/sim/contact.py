@@ -14,11 +14,12 @@ body vertex, ``n_0 . (p - v_0)``; outside the body both are positive (no energy)
 this only happens deeper than about one vertex spacing, where it keeps pushing outward.
 
 Neighbour lists (:class:`NeighborCache`) come from ``scipy.spatial.cKDTree`` and are
-refreshed only for points that moved farther than their threshold since their last
-refresh.  A list keeps only the candidates that can cover the point within that threshold
-(``|p - v_i| < sqrt(h_i) + delta``), so f is *exact* (identical to a fresh 60-neighbour
-query) as long as ``sqrt(max h) + delta <= r_60`` (distance to the 60th neighbour); we use
-``delta = max(r_60 - sqrt(max h), r_60 / 4)``.
+refreshed only for points that moved farther than their threshold delta since their
+last refresh.  A list keeps only the candidates that can cover the point within that
+threshold (``|p - v_i| < sqrt(h_i) + delta``, typically 15-20 of the 60), so f is *exact*
+(identical to a fresh 60-neighbour query) as long as ``sqrt(max h) + delta <= r_60``
+(distance to the 60th neighbour); we use ``delta = min(r_60 - sqrt(max h),
+sqrt(median h) / 2)`` (about 0.8 vertex spacings; ``r_60 / 4`` if the first is negative).
 
 Hessian: the exact one is ``2 k_c (grad f grad f^T + f hess f)``; the Newton solver
 uses the Gauss-Newton part ``2 k_c grad f grad f^T`` (PSD; the dropped term is
@@ -91,7 +92,11 @@ def _prune(body: ImplicitBody, origin, full_index, full_dist):
     k = full_index.shape[1]
     hmax = float(np.sqrt(body.support.max()))
     r_k = full_dist[:, -1]
-    thr = np.maximum(r_k - hmax, 0.25 * r_k) if k >= N_NEIGHBORS else np.full(len(r_k), np.inf)
+    if k >= N_NEIGHBORS:
+        thr = np.minimum(r_k - hmax, 0.5 * float(np.sqrt(np.median(body.support))))
+        thr = np.where(thr > 0, thr, 0.25 * r_k)
+    else:  # the list holds the whole body: always exact
+        thr = np.full(len(r_k), np.inf)
     keep = full_dist < np.sqrt(body.support[full_index]) + thr[:, None]
     kmax = max(int(keep.sum(1).max()), 1)
     order = np.argsort(~keep, axis=1, kind="stable")[:, :kmax]

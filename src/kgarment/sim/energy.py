@@ -20,7 +20,7 @@ from kgarment.sim.materials import (
     garment_material,
     lame_plane_stress,
 )
-from kgarment.sim.membrane import membrane
+from kgarment.sim.membrane import branches, membrane
 from kgarment.sim.model import SimModel, SimState
 from kgarment.sim.springs import GROUPS, SpringSet, attachment_springs, springs
 
@@ -60,12 +60,18 @@ def state_materials(model: SimModel, design: np.ndarray, activation) -> StateMat
     return StateMaterials(np.concatenate(ys), np.concatenate(ts))
 
 
+def vertex_stiffness(model: SimModel, mats: StateMaterials) -> np.ndarray:
+    """(N,) largest membrane stiffness ``Y t`` (N/m) over the elements around each vertex."""
+    s_v = np.zeros(model.n_vertices)
+    np.maximum.at(s_v, model.elements.tri.ravel(), np.repeat(mats.stiffness, 3))
+    return s_v
+
+
 def penalty_weights(model: SimModel, mats: StateMaterials, spr: SpringSet):
     """Contact weights (N,) and spring stiffnesses (S,) in N/m (formulas in ``model``)."""
     pen = model.penalties
     L2 = model.mean_edge**2
-    s_v = np.zeros(model.n_vertices)
-    np.maximum.at(s_v, model.elements.tri.ravel(), np.repeat(mats.stiffness, 3))
+    s_v = vertex_stiffness(model, mats)
     k_contact = pen.contact * s_v * model.vertex_area / L2
     k = np.empty(spr.size)
     grp = spr.group
@@ -102,6 +108,7 @@ class StateProblem:
         spr = SpringSet.concat([attachment_springs(model.garment_faces, mot.attach_faces,
                                                    mot.attach_targets), model.static_springs])
         k_contact, k_spring = penalty_weights(model, self.mats, spr)
+        self.dof_stiffness = np.repeat(vertex_stiffness(model, self.mats), 3)
         T = self._t
         el = model.elements
         mu, lam = lame_plane_stress(self.mats.young, model.preset.poisson)
@@ -218,6 +225,10 @@ class StateProblem:
         pos = self.model.pattern.vert_pos[vertices]  # (a, 6)
         out[pos.ravel()] += blocks.reshape(-1, 9)[:, self.model.pattern.vert_select].ravel()
         return out
+
+    def branches(self, x: torch.Tensor) -> np.ndarray:
+        """(M,) element branch: 0 normal, 1 slack, 2 uniaxial (see ``membrane.branches``)."""
+        return branches(x, self.tri, self.G, self.relaxed).cpu().numpy()
 
     def max_force(self, grad: torch.Tensor) -> float:
         """Largest nodal force norm, N."""

@@ -156,6 +156,35 @@ def _density(c11, c22, c12, mu, lam, relaxed, order: int, project: bool):
     return W, Wc, Wcc
 
 
+def branches(x: torch.Tensor, tri: torch.Tensor, shape_grad: torch.Tensor, relaxed: torch.Tensor) -> torch.Tensor:
+    """(m,) int: 0 normal, 1 slack, 2 uniaxial tension (wrinkled) at positions x (N, 3)."""
+    F = torch.einsum("mai,maj->mij", x[tri], shape_grad)
+    f0, f1 = F[:, :, 0], F[:, :, 1]
+    c11, c22, c12 = (f0 * f0).sum(1), (f1 * f1).sum(1), (f0 * f1).sum(1)
+    r = torch.sqrt((0.5 * (c11 - c22)) ** 2 + c12 * c12)
+    lmax, lmin = 0.5 * (c11 + c22) + r, 0.5 * (c11 + c22) - r
+    slack = relaxed & (lmax < 1.0)
+    uni = relaxed & ~slack & (lmin * torch.sqrt(lmax) < 1.0)
+    out = torch.zeros_like(c11, dtype=torch.long)
+    out[slack] = 1
+    out[uni] = 2
+    return out
+
+
+def _abs2(s11, s22, s12):
+    """Closed-form |S| (eigenvalues replaced by their absolute values) of symmetric 2x2."""
+    m = 0.5 * (s11 + s22)
+    r = torch.sqrt((0.5 * (s11 - s22)) ** 2 + s12 * s12)
+    l1, l2 = m + r, m - r
+    a1, a2 = l1.abs(), l2.abs()
+    # S = l1 P1 + l2 P2 with P1 = (S - l2 I)/(l1 - l2), P2 = I - P1
+    den = torch.where(r > 0, 2.0 * r, torch.ones_like(r))
+    p11 = torch.where(r > 0, (s11 - l2) / den, torch.ones_like(r))
+    p22 = torch.where(r > 0, (s22 - l2) / den, torch.zeros_like(r))
+    p12 = torch.where(r > 0, s12 / den, torch.zeros_like(r))
+    return a2 + (a1 - a2) * p11, a2 + (a1 - a2) * p22, (a1 - a2) * p12
+
+
 def _psd2(s11, s22, s12):
     """Closed-form projection of symmetric 2x2 matrices onto the PSD cone."""
     m = 0.5 * (s11 + s22)
@@ -201,7 +230,7 @@ def membrane(
     c11 = (f0 * f0).sum(1)
     c22 = (f1 * f1).sum(1)
     c12 = (f0 * f1).sum(1)
-    project = projection == "analytic"
+    project = projection in ("analytic", "abs")
     W, Wc, Wcc = _density(c11, c22, c12, mu, lam, relaxed, order, project)
     e = W * weight
     if order == 0:
@@ -212,7 +241,7 @@ def membrane(
     if order == 1:
         return e, grad, None
     if project:
-        s11, s22, s12 = _psd2(s11, s22, s12)
+        s11, s22, s12 = _abs2(s11, s22, s12) if projection == "abs" else _psd2(s11, s22, s12)
         S = torch.stack([torch.stack([s11, s12], 1), torch.stack([s12, s22], 1)], 1)
     G = shape_grad
     M = torch.einsum("maj,mjk,mbk->mab", G, S, G)  # (m, 3, 3)

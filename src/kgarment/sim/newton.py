@@ -32,6 +32,7 @@ import logging
 import time
 
 import numpy as np
+import scipy.sparse as sp
 import torch
 
 from kgarment.sim.assembly import NotPositiveDefinite, SparseCholesky
@@ -54,8 +55,12 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
     mu = opts.damping_min
     ev0 = prob.n_evals
     x = torch.as_tensor(np.asarray(x0, dtype=np.float64), device=prob.device).clone()
-    exact = False
-    E, g, H = prob.evaluate(x, order=2)
+    strategy = opts.hessian
+    exact = strategy == "shifted"
+    tau = 0.0  # shift of the exact Hessian, relative to the local stiffness
+    scale = prob.dof_stiffness  # (3N,) local membrane stiffness Y t, N/m
+    floor = opts.damping_min * k_ref
+    E, g, H = prob.evaluate(x, order=2, exact=exact)
     history: list[float] = []
     converged = False
     it = 0
@@ -69,53 +74,58 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
             break
         rhs = g.reshape(-1).cpu().numpy()
         dx = None
-        if exact:  # exact Hessian: quadratic convergence if it is positive definite
-            dx = _solve(linsolver, H, rhs, mu * k_ref)
+        if exact:  # exact Hessian, shifted until positive definite (Nocedal-Wright 3.3)
+            t = tau
+            for _ in range(opts.max_shifts):
+                dx = _solve(linsolver, H, rhs, t * scale + floor)
+                if dx is not None:
+                    break
+                t = max(10.0 * t, 1e-3)
             if dx is None:
                 exact = False
                 E, g, H = prob.evaluate(x, order=2)
+            else:
+                tau = t
         if dx is None:
             for _ in range(20):
-                dx = _solve(linsolver, H, rhs, mu * k_ref)
+                dx = _solve(linsolver, H, rhs, mu * scale + floor)
                 if dx is not None:
                     break
                 mu = max(mu * 10.0, 1e-6)
             else:
                 break
-        dx = _anticipate_contact(prob, x, H, rhs, dx, linsolver, mu * k_ref, opts.contact_passes)
+        dx = _anticipate(prob, x, H, rhs, dx, linsolver, opts.contact_passes)
         move = np.sqrt((dx.reshape(-1, 3) ** 2).sum(1).max())
         if move > max_move:
             dx *= max_move / move
         dxt = torch.as_tensor(dx.reshape(-1, 3), device=prob.device)
         slope = float((g * dxt).sum())
-        if slope >= 0.0:  # not a descent direction (should not happen with PD H)
-            mu = max(mu * 10.0, 1e-6)
-            if exact:
-                exact = False
-                E, g, H = prob.evaluate(x, order=2)
-            continue
         alpha, accepted = 1.0, False
-        slack = 1e-12 * abs(E)
-        for _ in range(opts.max_backtracks):
-            xt = x + alpha * dxt
-            Et, _, _ = prob.evaluate(xt, order=0, check=False)
-            if Et <= E + opts.armijo * alpha * slope + slack:
-                accepted = True
-                break
-            alpha *= 0.5
-        log.debug("newton %s it %d: E %.12g alpha %g mu %.1e exact %d fmax %.3e", prob.name, it, Et,
-                  alpha, mu, exact, fmax)
+        if slope < 0.0:
+            slack = 1e-12 * abs(E)
+            for _ in range(opts.max_backtracks):
+                xt = x + alpha * dxt
+                Et, _, _ = prob.evaluate(xt, order=0, check=False)
+                if Et <= E + opts.armijo * alpha * slope + slack:
+                    accepted = True
+                    break
+                alpha *= 0.5
+        log.debug("newton %s it %d: E %.12g alpha %g shift %.1e exact %d fmax %.3e", prob.name, it,
+                  E, alpha if accepted else 0.0, tau if exact else mu, exact, fmax)
         if not accepted:
-            mu = max(mu * 100.0, 1e-4)
             if exact:
-                exact = False
-                E, g, H = prob.evaluate(x, order=2)
+                tau = max(tau * 100.0, 1e-2)
+            else:
+                mu = max(mu * 100.0, 1e-4)
             continue
-        if alpha == 1.0:
+        if exact:
+            tau = (tau * 0.1 if tau > 1e-6 else 0.0) if alpha == 1.0 else (
+                max(tau * 10.0, 1e-3) if alpha < 0.125 else tau)
+        elif alpha == 1.0:
             mu = max(mu * 0.1, opts.damping_min)
         elif alpha < 0.125:
             mu = mu * 10.0
-        exact = opts.exact_newton and alpha == 1.0
+        exact = strategy == "shifted" or (strategy == "adaptive" and alpha == 1.0)
         x = xt
         E, g, H = prob.evaluate(x, order=2, exact=exact)
     rec = Convergence(
@@ -126,27 +136,31 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
     return x.cpu().numpy(), rec
 
 
-def _solve(linsolver: SparseCholesky, H: np.ndarray, rhs: np.ndarray, beta: float) -> np.ndarray | None:
-    """Newton direction ``-(H + beta I)^-1 rhs``, or None if not positive definite."""
+def _solve(linsolver: SparseCholesky, H: np.ndarray, rhs: np.ndarray, shift: np.ndarray) -> np.ndarray | None:
+    """Newton direction ``-(H + diag(shift))^-1 rhs``, or None if not positive definite."""
     try:
-        linsolver.factorize(H, beta=beta)
+        data = H.copy()
+        data[linsolver.pattern.diag_pos] += shift
+        linsolver.factorize(data, beta=0.0)
         dx = -linsolver.solve(rhs)
     except NotPositiveDefinite:
         return None
     return dx if np.all(np.isfinite(dx)) else None
 
 
-def _anticipate_contact(prob: StateProblem, x, H, rhs, dx, linsolver, beta, passes: int):
-    """Semismooth treatment of vertices that the step would push into the body.
+def _anticipate(prob: StateProblem, x, H, rhs, dx, linsolver, passes: int):
+    """Re-solve with the contact stiffness the step is about to meet.
 
     The Hessian has contact stiffness only where a vertex already penetrates; a step that
     pushes free vertices into the body then overshoots by orders of magnitude (the
     penalty is 10x the membrane stiffness) and the line search crawls.  We predict
     ``f + grad f . dx`` per vertex and, for vertices predicted inside, add the penalty's
     quadratic model ``k (f + grad f . dx)^2`` (Hessian ``2 k grad f grad f^T``, gradient
-    ``2 k f grad f``) and re-solve: the step then brings them to the surface instead of
-    through it.  Vertices moving outward are left free.  The result is used only if it is
-    a descent direction of the true energy.
+    ``2 k f grad f``) and re-solve (up to ``passes`` times): the step then brings them to
+    the surface instead of through it (a semismooth Newton step for the active set the
+    step predicts).  Vertices moving outward are left free.  The result is used only if
+    it is a descent direction of the true energy.  (Giving the stiffness without the
+    gradient term, or to every vertex near the surface, stalls lift-off: measured.)
     """
     if passes <= 0:
         return dx
@@ -162,12 +176,20 @@ def _anticipate_contact(prob: StateProblem, x, H, rhs, dx, linsolver, beta, pass
         added |= new
         idx = np.nonzero(new)[0]
         H = prob.add_contact_stiffness(H, idx, gf[idx])
+        k2 = 2.0 * prob.model_k_contact[idx]
         r = rhs2.reshape(-1, 3)
-        r[idx] += (2.0 * prob.model_k_contact[idx] * f[idx])[:, None] * gf[idx]
-        d2 = _solve(linsolver, H, rhs2, beta)
-        if d2 is None:
+        r[idx] += (k2 * f[idx])[:, None] * gf[idx]
+        rows = (3 * idx[:, None] + np.arange(3)).ravel()
+        vals = (np.sqrt(k2)[:, None] * gf[idx]).ravel()
+        cols = sp.csc_matrix((vals, (rows, np.repeat(np.arange(len(idx)), 3))), shape=(len(rhs), len(idx)))
+        try:
+            linsolver.add_outer(cols)
+            d2 = linsolver.solve(rhs2)
+        except NotPositiveDefinite:
             break
-        dx = d2
+        if not np.all(np.isfinite(d2)):
+            break
+        dx = -d2
         if float(rhs @ dx) < 0.0:
             best = dx
     return best

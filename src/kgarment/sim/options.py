@@ -24,9 +24,14 @@ class SolverOptions:
     max_iter : Newton iterations (L-BFGS: ``lbfgs_max_iter``);
     projection : Newton element Hessian PSD projection, "analytic" | "full" (9x9 eigh);
     exact_contact_hessian : full contact Hessian instead of Gauss-Newton in projected steps;
-    exact_newton : try the exact Hessian after full steps (see ``newton``);
+    hessian : "shifted" (exact Hessian + shift until positive definite), "adaptive"
+    (projected, exact after full steps) or "projected" (see ``newton``);
+    max_shifts : shift increases (x10) tried before falling back to projection;
     contact_passes : re-solves that add contact stiffness where a step enters the body;
-    device : torch device for the energies;  use_cholmod : prefer CHOLMOD over splu;
+    device : torch device for the energies;  threads : torch intra-op threads during the
+    solve (restored afterwards; None leaves torch's setting).  The element arrays are
+    small enough that OpenMP synchronisation costs more than it gains, badly so on a
+    loaded machine (50x measured on 2 busy cores), hence 1;  use_cholmod : prefer CHOLMOD over splu;
     armijo, max_backtracks : line search;  max_step : largest nodal move per Newton step,
     in mean edge lengths;  damping_min : smallest damping ``beta / (Y t)_cloth``;
     lbfgs_history : L-BFGS memory;  on_fail : "warn" (log + flag) | "raise"
@@ -39,9 +44,11 @@ class SolverOptions:
     lbfgs_max_iter: int = 50000
     projection: str = "analytic"
     exact_contact_hessian: bool = False
-    exact_newton: bool = True
+    hessian: str = "adaptive"
+    max_shifts: int = 6
     contact_passes: int = 3
     device: str = "cpu"
+    threads: int | None = 1
     use_cholmod: bool = True
     armijo: float = 1e-4
     max_backtracks: int = 40
@@ -53,8 +60,10 @@ class SolverOptions:
     def __post_init__(self):
         if self.method not in ("newton", "lbfgs"):
             raise ValueError(f"unknown method {self.method!r}")
-        if self.projection not in ("analytic", "full", "none"):
+        if self.projection not in ("analytic", "abs", "full", "none"):
             raise ValueError(f"unknown projection {self.projection!r}")
+        if self.hessian not in ("shifted", "adaptive", "projected"):
+            raise ValueError(f"unknown hessian strategy {self.hessian!r}")
         if self.on_fail not in ("warn", "raise"):
             raise ValueError(f"on_fail must be 'warn' or 'raise', not {self.on_fail!r}")
 

@@ -118,6 +118,18 @@ def solve_states(model: SimModel, design: np.ndarray, states: Sequence[SimState]
     if len(set(names)) != len(names):
         raise ValueError("state names must be unique")
     warm = _warm(warm_start, states, model.n_vertices)
+    saved_threads = torch.get_num_threads()
+    if options.threads is not None:
+        torch.set_num_threads(options.threads)
+    try:
+        results = _solve_all(model, design, states, warm, options)
+    finally:
+        torch.set_num_threads(saved_threads)
+    _report(results, options)
+    return results
+
+
+def _solve_all(model, design, states, warm, options) -> list[StateResult]:
     linsolver = None
     if options.method == "newton":
         linsolver = SparseCholesky(model.pattern, use_cholmod=options.use_cholmod)
@@ -133,6 +145,10 @@ def solve_states(model: SimModel, design: np.ndarray, states: Sequence[SimState]
                  state.name, options.method, "converged" if rec.converged else "NOT converged",
                  rec.iterations, rec.wall_time, rec.force_max, rec.tolerance)
         results.append(_result(prob, x, rec))
+    return results
+
+
+def _report(results: list[StateResult], options: SolverOptions) -> None:
     failed = [r for r in results if not r.converged]
     if failed:
         msg = "; ".join(f"{r.name}: max force {r.convergence.force_max:.3g} N > "
@@ -141,7 +157,6 @@ def solve_states(model: SimModel, design: np.ndarray, states: Sequence[SimState]
         if options.on_fail == "raise":
             raise ConvergenceError(f"states did not converge: {msg}", [r.name for r in failed])
         log.warning("states did not converge: %s", msg)
-    return results
 
 
 def evaluate_state(model: SimModel, design: np.ndarray, state: SimState, x: np.ndarray,
