@@ -301,3 +301,20 @@ def test_3d_files_have_colours(sleeve_fab, sleeve):
     assert len(first_v.split()) == 7  # x y z r g b
     with np.load(out / "design_clean.npz") as z:
         assert np.array_equal(z["design"] > 0.5, fab.cleanup.after)
+
+
+def test_patches_are_turned_up():
+    from types import SimpleNamespace
+
+    from kgarment.fabricate import layout_sheet
+
+    V, F = cylinder(nu=20, nv=10)  # axis along +Z: "up" runs straight up the patch
+    pats = make_patterns(V, F, np.ones(len(F), bool))
+    sheet = layout_sheet(pats, SimpleNamespace(loops={}), [])
+    (piece,) = sheet.pieces
+    y = piece.to_sheet(pats.patches[0].flat.uv)[:, 1]
+    z = pats.patches[0].mesh.vertices[:, 2]
+    assert np.allclose(y - 1000 * z, (y - 1000 * z).mean(), atol=1e-6)
+    arrow = next(m for m in piece.marks if m.kind == "arrow")
+    assert arrow.points[1, 1] > arrow.points[0, 1] and arrow.points[1, 0] == pytest.approx(arrow.points[0, 0])
+    assert np.ptp(sheet.square[:, 0]) == np.ptp(sheet.square[:, 1]) == 100.0

@@ -184,7 +184,7 @@ def clean_design(faces: np.ndarray, vertices: np.ndarray, solid: np.ndarray, str
     islands = 0
     if options.min_island_area > 0:
         s, islands = remove_islands(adj, s, areas, options.min_island_area, protected | ring)
-    log.info("clean-up: %d holes filled, %d faces opened, %d islands removed; reinforced %.1f -> %.1f cm^2",
+    log.debug("clean-up: %d holes filled, %d faces opened, %d islands removed; reinforced %.1f -> %.1f cm^2",
              holes, opened, islands, 1e4 * areas[solid0].sum(), 1e4 * areas[s].sum())
     return CleanupResult(solid0, s, holes, islands, opened, float(areas[solid0].sum()), float(areas[s].sum()),
                          protected)

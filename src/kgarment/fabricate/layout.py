@@ -120,7 +120,7 @@ def _loop_marks(patch, sheet_uv, garment) -> list[Mark]:
         for lp in patch.mesh.loops():
             a, b = gv[lp], gv[np.roll(lp, -1)]
             on = np.array([nxt.get(int(i)) == int(j) or prv.get(int(i)) == int(j) for i, j in zip(a, b)])
-            if not on.any() or on.all() and len(on) < 2:
+            if not on.any():
                 continue
             # runs of consecutive boundary edges on the loop; one notch in the middle of each
             k0 = int(np.argmin(on)) if not on.all() else 0

@@ -175,6 +175,10 @@ def make_patterns(garment_vertices: np.ndarray, garment_faces: np.ndarray, solid
             log.info("piece %d: distortion %.1f%% > %.1f%%, cut %d %s seam(s) -> %d piece(s)", k,
                      100 * fl.max_length_distortion, 100 * options.max_distortion, len(paths), kind, len(pieces))
             todo += pieces
+    for k, _, fl in done:
+        if fl.max_length_distortion > options.max_distortion:
+            log.warning("piece %d keeps a patch with %.1f%% length distortion (> %.1f%%)", k,
+                        100 * fl.max_length_distortion, 100 * options.max_distortion)
     done.sort(key=lambda t: -t[1].area())
     patches = tuple(Patch(f"P{i + 1}", p, fl, k) for i, (k, p, fl) in enumerate(done))
     return PatternSet(patches, tuple(Seam(f"S{i + 1}", np.asarray(s, np.int64), kind)

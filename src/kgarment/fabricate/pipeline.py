@@ -73,7 +73,7 @@ def fabricate(garment, strips, design: np.ndarray, options: FabricationOptions =
     if not c.after.any():
         raise KgarmentError("the design has no reinforced face left to cut (after the clean-up)")
     pats = make_patterns(garment.rest_vertices, garment.faces, c.after, options.patterns)
-    log.info("%d patches, %d seams", len(pats.patches), len(pats.seams))
+    log.debug("%d patches, %d seams", len(pats.patches), len(pats.seams))
     sheet = layout_sheet(pats, garment, strips, options.sheet_width, smooth_iterations=options.smooth_iterations,
                          title=title or f"kgarment {garment.name}")
     return Fabrication(garment, strips, design, c, pats, sheet, options)

@@ -1,0 +1,156 @@
+"""``kgarment fabricate RUN|RUN@ITERATION|DESIGN.npz [--problem FILE] [--out DIR]``: cut files.
+
+Cleans the design up, flattens the reinforcement into patches, and writes cut files at 1:1
+in millimetres (SVG, DXF, tiled PDF), the 3D design (GLB, OBJ, PLY), a bill of materials
+and a report; by default it also re-simulates the design before and after the clean-up and
+reports how rho ON/OFF changed.
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+from kgarment.errors import KgarmentError
+
+log = logging.getLogger("kgarment")
+
+
+def resolve_source(design: str, problem: str | None):
+    """(problem file, design path for ``load_design``, label, default output folder) for
+    'RUN', 'RUN@K' or a design file (which needs ``problem``)."""
+    run, _, it = design.partition("@")
+    run_dir = Path(run)
+    if run_dir.is_dir():
+        if not (run_dir / "problem.toml").is_file() and problem is None:
+            raise KgarmentError(f"{run_dir} is not a run folder (no problem.toml); give RUN, RUN@ITERATION, "
+                                "or a design file with --problem")
+        if it and not it.isdigit():
+            raise KgarmentError(f"iteration {it!r} in {design!r} must be a number")
+        pfile = Path(problem) if problem else run_dir / "problem.toml"
+        label = f"{run_dir} iteration {it}" if it else f"{run_dir} (final design)"
+        return pfile, design, label, run_dir / (f"fabrication@{it}" if it else "fabrication")
+    path = Path(design)
+    if it or not path.is_file():
+        raise KgarmentError(f"{design!r} is neither a run folder (RUN or RUN@ITERATION) nor a design file")
+    if problem is None:
+        raise KgarmentError(f"a design file ({path.name}) needs --problem FILE (the problem it was designed for)")
+    return Path(problem), str(path), str(path), path.parent / f"{path.stem}_fabrication"
+
+
+def _check_mesh(path: str, garment) -> None:
+    """A design .npz that stores its mesh must have been made for this garment."""
+    if not path.endswith(".npz") or not Path(path).is_file():
+        return
+    with np.load(path) as z:
+        faces = z["faces"] if "faces" in z.files else None
+        rest = z["rest_vertices"] if "rest_vertices" in z.files else None
+    if faces is not None and (faces.shape != garment.faces.shape or not np.array_equal(faces, garment.faces)):
+        raise KgarmentError(f"{path} was made for another garment mesh ({len(faces)} faces) than the "
+                            f"problem's {garment.name} ({garment.n_faces} faces)")
+    if rest is not None and rest.shape == garment.rest_vertices.shape \
+            and np.abs(rest - garment.rest_vertices).max() > 1e-6:
+        raise KgarmentError(f"{path} was made on another body (its garment's rest shape differs)")
+
+
+def prepare_output(out: Path, force: bool) -> Path:
+    """Create the output folder; an existing non-empty one is replaced only with ``force``."""
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        if not force:
+            raise KgarmentError(f"output folder {out} exists; use --force to replace it")
+        shutil.rmtree(out) if out.is_dir() else out.unlink()
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _options(args):
+    from kgarment.fabricate import CleanupOptions, FabricationOptions, PatternOptions
+
+    return FabricationOptions(
+        cleanup=CleanupOptions(args.min_island_area, args.max_hole_area, args.min_width),
+        patterns=PatternOptions(method=args.method, max_distortion=args.max_distortion, max_cuts=args.max_cuts),
+        smooth_iterations=0 if args.no_smooth else 10, sheet_width=args.sheet_width, paper=args.paper)
+
+
+def cmd_fabricate(args) -> int:
+    from kgarment.fabricate import fabricate, write_fabrication
+    from kgarment.problem import build_body, build_clutches, build_garment, load_problem
+    from kgarment.simulate import load_design
+
+    logging.getLogger("ezdxf").setLevel(logging.WARNING)
+    pfile, dpath, label, default_out = resolve_source(args.design, args.problem)
+    options = _options(args)
+    p = load_problem(pfile)
+    out = Path(args.out) if args.out else default_out
+    if out.exists() and any(out.iterdir()) and not args.force:  # fail before the slow part
+        raise KgarmentError(f"output folder {out} exists; use --force to replace it")
+    t0 = time.time()
+    body = build_body(p)
+    garment = build_garment(p, body)
+    strips = build_clutches(p, body, garment)
+    design = load_design(dpath, garment.n_faces)
+    _check_mesh(dpath, garment)
+    print(f"design: {label}: {100 * (design > 0.5).mean():.1f}% of {garment.n_faces} faces of {garment.name} "
+          f"reinforced; {len(strips)} clutches")
+    fab = fabricate(garment, strips, design, options, title=f"kgarment {garment.name} - {label}")
+    c = fab.cleanup
+    print(f"clean-up: {c.holes_filled} holes filled, {c.faces_opened} faces removed by the minimum width, "
+          f"{c.islands_removed} islands removed; reinforced {1e4 * c.area_before:.1f} -> {1e4 * c.area_after:.1f} cm^2")
+    evaluation = None
+    if not args.no_resimulate:
+        from kgarment.cli_design import evaluate_design
+
+        print("re-simulating the design before and after the clean-up ...")
+        before = evaluate_design(p, design, args.device)
+        after = before if c.changed_faces == 0 else evaluate_design(p, fab.clean_design, args.device)
+        evaluation = (before, after)
+        for b, a in zip(before, after):
+            flag = "" if b["converged"] and a["converged"] else "  (NOT converged)"
+            print(f"  rho {b['motion']:22s} {b['state']:5s} {b['rho']:7.3f} -> {a['rho']:7.3f}{flag}")
+    prepare_output(out, args.force)
+    files = write_fabrication(fab, out, evaluation)
+    print(f"{len(fab.patterns.patches)} patches, {len(fab.patterns.seams)} seams, {time.time() - t0:.1f} s:")
+    limit = options.patterns.max_distortion
+    for pt in fab.patterns.patches:
+        f = pt.flat
+        flag = f"  (over {100 * limit:g}%: allow more seams with --max-cuts)" if f.max_length_distortion > limit else ""
+        print(f"  {pt.label:4s} {1e4 * f.area_3d:7.1f} cm^2  area distortion {100 * f.area_distortion:5.2f}%  "
+              f"max length distortion {100 * f.max_length_distortion:5.2f}%{flag}")
+    print(f"wrote {out}/ (cut files in millimetres at 1:1):")
+    for f in files:
+        print(f"  {f}")
+    return 0
+
+
+def add_parser(sub, common=None) -> None:
+    """Add ``fabricate`` to the ``kgarment`` sub-commands (``common`` is not used: the
+    positional argument is the design, not a problem)."""
+    sp = sub.add_parser("fabricate", help="clean a design up and write cut files (SVG, DXF, PDF), 3D files and a BOM")
+    sp.add_argument("design", help="run folder (its final design), RUN@ITERATION, or a design file (.npz/.npy/.txt) "
+                                   "with --problem")
+    sp.add_argument("--problem", help="problem file (TOML); needed for a design file "
+                                      "(default for a run: RUN/problem.toml)")
+    sp.add_argument("--out", help="output folder (default RUN/fabrication, RUN/fabrication@K, or DESIGN_fabrication)")
+    sp.add_argument("--force", action="store_true", help="replace an existing output folder")
+    sp.add_argument("--no-resimulate", action="store_true", help="skip re-simulating rho before/after the clean-up")
+    sp.add_argument("--device", default="cpu", help="torch device for the re-simulation (default cpu)")
+    g = sp.add_argument_group("clean-up (SI units; 0 switches a step off)")
+    g.add_argument("--min-island-area", type=float, default=4e-4, metavar="M2",
+                   help="remove islands of reinforcement smaller than this, m^2 (default 4e-4 = 4 cm^2)")
+    g.add_argument("--max-hole-area", type=float, default=4e-4, metavar="M2",
+                   help="fill enclosed soft holes smaller than this, m^2 (default 4e-4)")
+    g.add_argument("--min-width", type=float, default=0.01, metavar="M",
+                   help="minimum feature width, m (default 0.01)")
+    g = sp.add_argument_group("patterns")
+    g.add_argument("--method", default="arap", choices=("arap", "lscm"), help="flattening (default arap)")
+    g.add_argument("--max-distortion", type=float, default=0.05,
+                   help="cut a seam where an edge's length changes by more than this fraction (default 0.05)")
+    g.add_argument("--max-cuts", type=int, default=4, help="at most this many seams per piece (default 4)")
+    g.add_argument("--no-smooth", action="store_true", help="keep the raw triangle-edge outlines")
+    g.add_argument("--sheet-width", type=float, default=600.0, help="cutting sheet width, mm (default 600)")
+    g.add_argument("--paper", default="a4", choices=("a4", "letter"), help="PDF page size (default a4)")
+    sp.set_defaults(func=cmd_fabricate)
