@@ -1,0 +1,113 @@
+"""IMLS body contact and springs: values, derivatives, neighbour cache."""
+
+import numpy as np
+import pytest
+import torch
+
+from kgarment.sim import ImplicitBody, update_neighbors
+from kgarment.sim.contact import contact, imls
+from kgarment.sim.springs import attachment_springs, binding_springs, springs
+from kgarment.sim.synthetic import sphere_body
+
+R = 0.1
+
+
+@pytest.fixture(scope="module")
+def body():
+    v, n, f = sphere_body(R, 4)
+    return ImplicitBody.from_mesh(v, n, f)
+
+
+def _args(body, p, cache=None):
+    c = update_neighbors(body, p, cache)
+    T = torch.tensor
+    return c, (T(body.vertices), T(body.normals), T(body.support), T(c.index), T(c.valid, dtype=torch.float64),
+               T(c.nearest))
+
+
+def _points(n, radii, seed=0):
+    d = np.random.default_rng(seed).normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return d * np.asarray(radii)[:, None]
+
+
+def test_support_is_twice_mean_squared_neighbour_distance(body):
+    d, _ = body.tree.query(body.vertices, k=7)
+    assert np.allclose(body.support, 2 * np.mean(d[:, 1:] ** 2, 1))
+
+
+def test_imls_approximates_signed_distance(body):
+    r = np.linspace(R - 0.003, R + 0.003, 200)
+    p = _points(200, r)
+    _, a = _args(body, p)
+    f, g, _ = imls(torch.tensor(p), *a, order=1)
+    sd = np.linalg.norm(p, axis=1) - R
+    spacing = np.sqrt(np.median(body.support) / 2)
+    assert np.abs(f.numpy() - sd).max() < 0.1 * spacing  # ~0.1 mm here
+    assert np.all(np.sign(f.numpy()[np.abs(sd) > 5e-4]) == np.sign(sd[np.abs(sd) > 5e-4]))
+    radial = p / np.linalg.norm(p, axis=1, keepdims=True)
+    assert np.all(np.sum(g.numpy() * radial, 1) > 0.9)
+
+
+def test_contact_derivatives_finite_differences(body):
+    p = _points(40, np.full(40, R - 0.001), seed=2)
+    k = torch.full((40,), 1e4, dtype=torch.float64)
+    _, a = _args(body, p)
+    pt = torch.tensor(p)
+    e, g, H = contact(pt, k, *a, order=2, exact_hessian=True)
+    assert float(e.min()) > 0
+    h = 1e-7
+    for c in range(3):
+        dp = torch.zeros_like(pt)
+        dp[:, c] = h
+        ep, gp, _ = contact(pt + dp, k, *a, order=1)
+        em, gm, _ = contact(pt - dp, k, *a, order=1)
+        assert torch.allclose((ep - em) / (2 * h), g[:, c], rtol=1e-6, atol=1e-9)
+        assert torch.allclose((gp - gm) / (2 * h), H[:, :, c], rtol=1e-5, atol=1e-6)
+    # Gauss-Newton Hessian: PSD and close to the exact one at small penetration
+    _, _, Hgn = contact(pt, k, *a, order=2)
+    assert float(torch.linalg.eigvalsh(Hgn).min()) >= -1e-9
+    assert float((Hgn - H).abs().max()) < 0.05 * float(H.abs().max())
+    # outside: no energy, no force
+    q = _points(10, np.full(10, R + 0.002), seed=3)
+    _, aq = _args(body, q)
+    eq, gq, _ = contact(torch.tensor(q), k[:10], *aq, order=1)
+    assert float(eq.abs().max()) == 0.0 and float(gq.abs().max()) == 0.0
+
+
+def test_neighbor_cache_is_exact_and_lazy(body):
+    p = _points(300, np.full(300, R + 0.001), seed=4)
+    c0, _a0 = _args(body, p)
+    assert c0.index.shape[1] < 60  # pruned to the candidates that can matter
+    rng = np.random.default_rng(5)
+    for step in (0.2, 0.9, 3.0):
+        q = p + step * c0.threshold.min() * rng.normal(size=p.shape) / np.sqrt(3)
+        _c1, a1 = _args(body, q, c0)
+        _, af = _args(body, q)  # fresh query
+        f1 = imls(torch.tensor(q), *a1)[0]
+        ff = imls(torch.tensor(q), *af)[0]
+        assert torch.allclose(f1, ff, rtol=0, atol=1e-15)
+    same = update_neighbors(body, p + 1e-9, c0)
+    assert same is c0
+
+
+def test_springs_gradient():
+    faces = np.array([[0, 1, 2], [1, 3, 2]])
+    s1 = attachment_springs(faces, np.array([1]), np.array([[0.1, 0.2, 0.3]]))
+    s2 = binding_springs(np.array([4]), faces, np.array([0]), np.array([[0.2, 0.3, 0.5]]), "anchor")
+    rng = np.random.default_rng(0)
+    x = torch.tensor(rng.normal(size=(5, 3)))
+    for s in (s1, s2):
+        args = (torch.tensor(s.index), torch.tensor(s.coef), torch.tensor(s.target),
+                torch.tensor([7.0], dtype=torch.float64))
+        _e, g = springs(x, *args, order=1)
+        h = 1e-6
+        for i in range(5):
+            for c in range(3):
+                dx = torch.zeros_like(x)
+                dx[i, c] = h
+                fd = (springs(x + dx, *args)[0] - springs(x - dx, *args)[0]) / (2 * h)
+                assert float(fd) == pytest.approx(float(g[i, c]), rel=1e-7, abs=1e-9)
+    # residual of an anchor: clutch vertex minus its barycentric point
+    A = s2.operator(5).toarray()
+    assert np.allclose(A[0], [-0.2, -0.3, -0.5, 0.0, 1.0])
