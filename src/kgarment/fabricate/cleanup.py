@@ -6,8 +6,8 @@ Steps (each one optional through its threshold):
    smaller than ``max_hole_area`` become reinforced, unless a clutch lies over them (the
    optimiser leaves soft cloth under a clutch on purpose);
 2. minimum feature width: a morphological opening (erosion, then dilation) with a ball of
-   diameter ``min_width`` on the face graph removes necks and spikes thinner than that,
-   except near clutch ends;
+   diameter ``min_width`` on the face graph removes necks and spikes thinner than that
+   (the garment's edge counts as soft, so spikes along it go too), except near clutch ends;
 3. islands: reinforced components smaller than ``min_island_area`` are removed unless they
    touch a clutch end (hold a face under a clutch anchor, or a neighbour of one) or an
    attachment-ring face.
@@ -125,29 +125,59 @@ def fill_holes(adj, faces, solid, areas, max_area, avoid) -> tuple[np.ndarray, i
     return out, n
 
 
-def ball_matrix(faces: np.ndarray, centroids: np.ndarray, radius: float, adj=None) -> sp.csr_matrix:
-    """(m, m) bool sparse: faces whose centroids are within ``radius`` metres of each other
-    and a few steps apart on the face graph (so the ball does not jump across gaps).
+def ball_matrix(vertices: np.ndarray, faces: np.ndarray, radius: float, adj=None) -> sp.csr_matrix:
+    """(m, m) bool sparse structuring ball: face j is in the ball of face i when their
+    centroids are closer than ``radius`` plus the mean of their inradii (so the ball reaches
+    the faces that come within ``radius`` of the centroid, at any mesh resolution), and a few
+    steps apart on the face graph (so it does not jump across gaps between body parts).
 
-    faces : (m, 3); centroids : (m, 3) metres."""
+    vertices : (n, 3) metres; faces : (m, 3); radius : metres."""
     adj = face_adjacency(faces) if adj is None else adj
     m = len(faces)
+    t = vertices[faces]
+    cen = t.mean(axis=1)
+    area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    inradius = 2 * area / np.linalg.norm(t - np.roll(t, -1, axis=1), axis=2).sum(axis=1).clip(1e-300)
     i, j = adj.nonzero()
-    step = float(np.median(np.linalg.norm(centroids[i] - centroids[j], axis=1))) if len(i) else radius
-    hops = int(min(12, max(1, np.ceil(1.5 * radius / max(step, 1e-9)))))
+    step = float(np.median(np.linalg.norm(cen[i] - cen[j], axis=1))) if len(i) else radius
+    reach_r = radius + float(inradius.max())
+    hops = int(min(12, max(1, np.ceil(1.5 * reach_r / max(step, 1e-9)))))
     reach = sp.identity(m, format="csr", dtype=np.int8)
     A = (adj + sp.identity(m, format="csr")).astype(bool).astype(np.int8)
     for _ in range(hops):
         reach = (reach @ A).astype(bool).astype(np.int8)
     reach = reach.tocoo()
-    d = np.linalg.norm(centroids[reach.row] - centroids[reach.col], axis=1)
-    ok = d <= radius
+    d = np.linalg.norm(cen[reach.row] - cen[reach.col], axis=1)
+    ok = d <= radius + 0.5 * (inradius[reach.row] + inradius[reach.col])
     return sp.csr_matrix((np.ones(ok.sum(), bool), (reach.row[ok], reach.col[ok])), shape=(m, m))
 
 
-def opening(ball: sp.csr_matrix, solid: np.ndarray) -> np.ndarray:
-    """Morphological opening of ``solid`` (m,) bool with the structuring ``ball`` (m, m)."""
+def near_boundary(vertices: np.ndarray, faces: np.ndarray, radius: float) -> np.ndarray:
+    """(m,) bool: faces whose centroid comes within ``radius`` (plus half its inradius) of
+    the garment's boundary (sampled along every boundary edge). vertices (n, 3), faces (m, 3)."""
+    from scipy.spatial import cKDTree
+
+    from kgarment.garment.topology import boundary_edges
+
+    be = boundary_edges(faces)
+    if not len(be):
+        return np.zeros(len(faces), bool)
+    t = np.linspace(0.0, 1.0, 5)[:, None, None]
+    pts = ((1 - t) * vertices[be[:, 0]] + t * vertices[be[:, 1]]).reshape(-1, 3)
+    tri = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    inradius = 2 * area / np.linalg.norm(tri - np.roll(tri, -1, axis=1), axis=2).sum(axis=1).clip(1e-300)
+    d, _ = cKDTree(pts).query(tri.mean(axis=1))
+    return d < radius + 0.5 * inradius
+
+
+def opening(ball: sp.csr_matrix, solid: np.ndarray, edge: np.ndarray | None = None) -> np.ndarray:
+    """Morphological opening of ``solid`` (m,) bool with the structuring ``ball`` (m, m);
+    ``edge`` (m,) bool marks faces whose ball reaches past the garment's edge (counted as
+    soft, so spikes along the edge go too)."""
     eroded = (ball @ (~solid).astype(np.int32)) == 0
+    if edge is not None:
+        eroded &= ~edge
     return ((ball @ eroded.astype(np.int32)) > 0) & solid
 
 
@@ -177,8 +207,9 @@ def clean_design(faces: np.ndarray, vertices: np.ndarray, solid: np.ndarray, str
         s, holes = fill_holes(adj, faces, s, areas, options.max_hole_area, under)
     opened = 0
     if options.min_width > 0:
-        ball = ball_matrix(faces, tri.mean(axis=1), 0.5 * options.min_width, adj)
-        o = opening(ball, s) | (s & protected)
+        ball = ball_matrix(vertices, faces, 0.5 * options.min_width, adj)
+        edge = near_boundary(vertices, faces, 0.5 * options.min_width)
+        o = opening(ball, s, edge) | (s & (protected | ring))
         opened = int((s & ~o).sum())
         s = o
     islands = 0

@@ -110,30 +110,34 @@ def _notch(a: np.ndarray, b: np.ndarray, kind: str, text: str) -> Mark:
 
 
 def _loop_marks(patch, sheet_uv, garment) -> list[Mark]:
-    """Notches where the patch edge runs along a garment boundary loop (one per run)."""
+    """Notches where the patch edge runs along a garment boundary loop: one in the middle of
+    every run of edges on the loop, the loop's name written at the longest run."""
     marks = []
     gv = patch.mesh.garment_vertex
     for name, loop in garment.loops.items():
         loop = np.asarray(loop)
-        nxt = dict(zip(loop.tolist(), np.roll(loop, -1).tolist()))
-        prv = dict(zip(np.roll(loop, -1).tolist(), loop.tolist()))
+        on_loop = set(zip(loop.tolist(), np.roll(loop, -1).tolist()))
+        on_loop |= {(j, i) for i, j in on_loop}
+        runs = []  # (length in mm, a, b) of the middle edge of each run
         for lp in patch.mesh.loops():
-            a, b = gv[lp], gv[np.roll(lp, -1)]
-            on = np.array([nxt.get(int(i)) == int(j) or prv.get(int(i)) == int(j) for i, j in zip(a, b)])
+            nx = np.roll(lp, -1)
+            on = np.array([(int(i), int(j)) in on_loop for i, j in zip(gv[lp], gv[nx], strict=True)])
             if not on.any():
                 continue
-            # runs of consecutive boundary edges on the loop; one notch in the middle of each
-            k0 = int(np.argmin(on)) if not on.all() else 0
-            r = np.roll(on, -k0)
-            idx = np.roll(np.arange(len(on)), -k0)
+            k0 = int(np.argmin(on)) if not on.all() else 0  # start the scan off the loop
+            r, idx = np.roll(on, -k0), np.roll(np.arange(len(on)), -k0)
+            length = np.linalg.norm(sheet_uv[nx] - sheet_uv[lp], axis=1)
             start = None
             for i in range(len(r) + 1):
                 if i < len(r) and r[i] and start is None:
                     start = i
                 elif (i == len(r) or not r[i]) and start is not None:
                     e = idx[(start + i - 1) // 2]
-                    marks.append(_notch(sheet_uv[lp[e]], sheet_uv[np.roll(lp, -1)[e]], "loop", name))
+                    runs.append((float(length[idx[start:i]].sum()), sheet_uv[lp[e]], sheet_uv[nx[e]]))
                     start = None
+        if runs:
+            best = max(range(len(runs)), key=lambda k: runs[k][0])
+            marks += [_notch(a, b, "loop", name if k == best else "") for k, (_, a, b) in enumerate(runs)]
     return marks
 
 
