@@ -254,8 +254,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_simulate)
 
     from kgarment.cli_design import add_parsers
+    from kgarment.cli_fabricate import add_parser as add_fabricate
 
     add_parsers(sub, common)
+    add_fabricate(sub, common)
 
     sp = sub.add_parser("demo", help="the main job: design the three-motion shirt (examples/shirt_three_motions.toml)")
     common(sp, problem=False)
