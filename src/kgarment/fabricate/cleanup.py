@@ -100,8 +100,9 @@ def _components(adj: sp.csr_matrix, mask: np.ndarray) -> list[np.ndarray]:
 
 
 def remove_islands(adj, solid, areas, min_area, keep) -> tuple[np.ndarray, int]:
-    """Drop reinforced components (solid (m,) bool) under ``min_area`` m^2 that contain no
-    ``keep`` (m,) bool face. Returns (new solid, number removed)."""
+    """Drop reinforced components of ``solid`` (m,) bool smaller than ``min_area`` m^2 that
+    hold no ``keep`` (m,) bool face. adj : (m, m) face adjacency; areas : (m,) m^2.
+    Returns (new solid (m,) bool, number removed)."""
     out, n = solid.copy(), 0
     for comp in _components(adj, solid):
         if areas[comp].sum() < min_area and not keep[comp].any():
@@ -111,8 +112,10 @@ def remove_islands(adj, solid, areas, min_area, keep) -> tuple[np.ndarray, int]:
 
 
 def fill_holes(adj, faces, solid, areas, max_area, avoid) -> tuple[np.ndarray, int]:
-    """Reinforce soft components that do not reach the garment boundary, are smaller than
-    ``max_area`` m^2 and hold no ``avoid`` (m,) bool face. Returns (new solid, number)."""
+    """Reinforce the soft components of ``solid`` (m,) bool that do not reach the garment
+    boundary, are smaller than ``max_area`` m^2 and hold no ``avoid`` (m,) bool face.
+    adj : (m, m) face adjacency; faces : (m, 3); areas : (m,) m^2.
+    Returns (new solid (m,) bool, number filled)."""
     sides = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], -1).reshape(-1, 2), axis=1)
     _, inv, cnt = np.unique(sides, axis=0, return_inverse=True, return_counts=True)
     on_edge = (cnt[inv.reshape(-1)] == 1).reshape(-1, 3).any(axis=1)

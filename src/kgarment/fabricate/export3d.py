@@ -68,7 +68,8 @@ def design_meshes(vertices: np.ndarray, faces: np.ndarray, patterns, strips):
 
 
 def write_3d(vertices: np.ndarray, faces: np.ndarray, patterns, strips, stem) -> list[Path]:
-    """Write ``stem``.glb, .obj and .ply. Returns the paths."""
+    """Write ``stem``.glb, .obj and .ply of the garment (vertices (n, 3) metres, faces
+    (m, 3)) coloured by ``patterns`` and its clutch ``strips``. Returns the paths."""
     import trimesh
 
     g, c = design_meshes(vertices, faces, patterns, strips)
