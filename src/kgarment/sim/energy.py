@@ -108,7 +108,9 @@ class StateProblem:
         spr = SpringSet.concat([attachment_springs(model.garment_faces, mot.attach_faces,
                                                    mot.attach_targets), model.static_springs])
         k_contact, k_spring = penalty_weights(model, self.mats, spr)
-        self.dof_stiffness = np.repeat(vertex_stiffness(model, self.mats), 3)
+        s_v = vertex_stiffness(model, self.mats)
+        self.dof_stiffness = np.repeat(s_v, 3)
+        self.force_scale = self._t(np.maximum(s_v, model.preset.cloth_stiffness) * model.mean_edge)
         T = self._t
         el = model.elements
         mu, lam = lame_plane_stress(self.mats.young, model.preset.poisson)
@@ -233,3 +235,7 @@ class StateProblem:
     def max_force(self, grad: torch.Tensor) -> float:
         """Largest nodal force norm, N."""
         return float(torch.linalg.vector_norm(grad, dim=1).max())
+
+    def residual(self, grad: torch.Tensor) -> float:
+        """Convergence measure: ``max_v |dE/dx_v| / (s_v L)`` (dimensionless, see ``options``)."""
+        return float((torch.linalg.vector_norm(grad, dim=1) / self.force_scale).max())

@@ -26,11 +26,11 @@ def lbfgs_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions) -> tupl
     t0 = time.perf_counter()
     model = prob.model
     L, fc = model.mean_edge, model.char_force
-    tol_f = opts.tol * model.char_force
+    tol_f = opts.tol
     ev0 = prob.n_evals
     y = torch.tensor(np.asarray(x0, dtype=np.float64) / L, device=prob.device, requires_grad=True)
     opt = torch.optim.LBFGS([y], lr=1.0, max_iter=_CHUNK, max_eval=int(_CHUNK * 1.5),
-                            tolerance_grad=opts.tol / np.sqrt(3.0), tolerance_change=0.0,
+                            tolerance_grad=0.0, tolerance_change=0.0,
                             history_size=opts.lbfgs_history, line_search_fn="strong_wolfe")
 
     def closure():
@@ -45,7 +45,7 @@ def lbfgs_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions) -> tupl
     while True:
         with torch.no_grad():
             _, g, _ = prob.evaluate(y.detach() * L, order=1)
-        fmax = prob.max_force(g)
+        fmax = prob.residual(g)
         history.append(fmax)
         if fmax <= tol_f:
             converged = True
@@ -61,8 +61,8 @@ def lbfgs_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions) -> tupl
             break
     n_iter = opt.state[opt._params[0]].get("n_iter", 0)
     rec = Convergence(
-        converged=converged, iterations=int(n_iter), force_max=history[-1],
-        grad_norm=float(torch.linalg.vector_norm(g)), tolerance=tol_f,
+        converged=converged, iterations=int(n_iter), residual=history[-1], tolerance=tol_f,
+        force_max=prob.max_force(g), grad_norm=float(torch.linalg.vector_norm(g)),
         wall_time=time.perf_counter() - t0, evaluations=prob.n_evals - ev0, method="lbfgs",
         history=tuple(history))
     return (y.detach() * L).cpu().numpy(), rec

@@ -107,7 +107,7 @@ class SimModel:
 
     @property
     def char_force(self) -> float:
-        """Characteristic nodal force ``Y_cloth t_cloth L`` (N) of the convergence test."""
+        """Characteristic nodal force of plain cloth, ``Y_cloth t_cloth L`` (N)."""
         return self.preset.cloth_stiffness * self.mean_edge
 
     def initial_positions(self, garment_x: np.ndarray) -> np.ndarray:

@@ -141,9 +141,9 @@ def _solve_all(model, design, states, warm, options) -> list[StateResult]:
             x, rec = newton_solve(prob, x0, options, linsolver)
         else:
             x, rec = lbfgs_solve(prob, x0, options)
-        log.info("state %s: %s %s in %d iterations, %.3f s, max force %.3g N (tol %.3g N)",
+        log.info("state %s: %s %s in %d iterations, %.3f s, residual %.3g (tol %.3g), max force %.3g N",
                  state.name, options.method, "converged" if rec.converged else "NOT converged",
-                 rec.iterations, rec.wall_time, rec.force_max, rec.tolerance)
+                 rec.iterations, rec.wall_time, rec.residual, rec.tolerance, rec.force_max)
         results.append(_result(prob, x, rec))
     return results
 
@@ -151,8 +151,8 @@ def _solve_all(model, design, states, warm, options) -> list[StateResult]:
 def _report(results: list[StateResult], options: SolverOptions) -> None:
     failed = [r for r in results if not r.converged]
     if failed:
-        msg = "; ".join(f"{r.name}: max force {r.convergence.force_max:.3g} N > "
-                        f"{r.convergence.tolerance:.3g} N, |grad| {r.convergence.grad_norm:.3g} N"
+        msg = "; ".join(f"{r.name}: residual {r.convergence.residual:.3g} > {r.convergence.tolerance:.3g} "
+                        f"(max force {r.convergence.force_max:.3g} N, |grad| {r.convergence.grad_norm:.3g} N)"
                         for r in failed)
         if options.on_fail == "raise":
             raise ConvergenceError(f"states did not converge: {msg}", [r.name for r in failed])
