@@ -194,3 +194,14 @@ def test_input_validation():
         solve_states(model, np.full(model.n_faces, 0.5), [SimState.create(motion, [1.0, 0.0])])
     with pytest.raises(ValueError):
         build_model(np.zeros((3, 3)), np.array([[0, 1, 2]]))
+
+
+def test_worker_processes_give_the_same_results():
+    model, motion = tube_scene("reference")
+    states = [SimState.create(motion, [g]) for g in (1.0, 0.0)]
+    d = np.full(model.n_faces, 0.001)
+    serial = solve_states(model, d, states)
+    par = solve_states(model, d, states, options=SolverOptions(workers=2))
+    for a, b in zip(serial, par):
+        assert a.name == b.name and b.converged
+        assert np.array_equal(a.x, b.x) and a.energy == b.energy

@@ -63,6 +63,7 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
     strategy = opts.hessian
     exact = strategy == "shifted"
     tau = 0.0  # shift of the exact Hessian, relative to the local stiffness
+    failed = (-1.0, -10)  # (largest shift that failed recently, iteration)
     scale = prob.dof_stiffness  # (3N,) local membrane stiffness Y t, N/m
     floor = opts.damping_min * k_ref
     E, g, H = prob.evaluate(x, order=2, exact=exact)
@@ -85,6 +86,7 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
                 dx = _solve(linsolver, H, rhs, t * scale + floor)
                 if dx is not None:
                     break
+                failed = (max(failed[0], t), it)
                 t = max(10.0 * t, 1e-3)
             if dx is None:
                 exact = False
@@ -115,6 +117,16 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
                     accepted = True
                     break
                 alpha *= 0.5
+        if accepted and alpha == 1.0 and opts.extrapolate and E - Et > 0.75 * -slope:
+            # more decrease than a convex quadratic model allows: negative curvature along
+            # dx (sliding, buckling); try longer steps while the energy keeps falling
+            room = max_move / max(float(torch.linalg.vector_norm(dxt, dim=1).max()), 1e-300)
+            while 2.0 * alpha <= min(room, 64.0):
+                E2, _, _ = prob.evaluate(x + 2.0 * alpha * dxt, order=0, check=False)
+                if not E2 < Et:
+                    break
+                alpha, Et = 2.0 * alpha, E2
+            xt = x + alpha * dxt
         log.debug("newton %s it %d: E %.12g alpha %g shift %.1e exact %d residual %.3e", prob.name, it,
                   E, alpha if accepted else 0.0, tau if exact else mu, exact, fmax)
         if not accepted:
@@ -124,13 +136,17 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
                 mu = max(mu * 100.0, 1e-4)
             continue
         if exact:
-            tau = (tau * 0.1 if tau > 1e-6 else 0.0) if alpha == 1.0 else (
-                max(tau * 10.0, 1e-3) if alpha < 0.125 else tau)
-        elif alpha == 1.0:
+            lower = tau * 0.1 if tau > 1e-6 else 0.0
+            if it - failed[1] > 2:  # forget failed shifts after 3 iterations
+                failed = (-1.0, -10)
+            if lower <= failed[0]:  # known to be indefinite: don't pay a failed factorisation
+                lower = tau
+            tau = lower if alpha >= 1.0 else (max(tau * 10.0, 1e-3) if alpha < 0.125 else tau)
+        elif alpha >= 1.0:
             mu = max(mu * 0.1, opts.damping_min)
         elif alpha < 0.125:
             mu = mu * 10.0
-        exact = strategy == "shifted" or (strategy == "adaptive" and alpha == 1.0)
+        exact = strategy == "shifted" or (strategy == "adaptive" and alpha >= 1.0)
         x = xt
         E, g, H = prob.evaluate(x, order=2, exact=exact)
     rec = Convergence(

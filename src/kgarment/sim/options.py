@@ -34,11 +34,14 @@ class SolverOptions:
     hessian : "shifted" (exact Hessian + shift until positive definite), "adaptive"
     (projected, exact after full steps) or "projected" (see ``newton``);
     max_shifts : shift increases (x10) tried before falling back to projection;
+    extrapolate : try step lengths 2, 4, ... 64 after a full step that decreased the energy
+    by more than 3/4 of the linear prediction (negative curvature: sliding, buckling);
     contact_passes : re-solves that add contact stiffness where a step enters the body;
     device : torch device for the energies;  threads : torch intra-op threads during the
     solve (restored afterwards; None leaves torch's setting).  The element arrays are
     small enough that OpenMP synchronisation costs more than it gains, badly so on a
-    loaded machine (50x measured on 2 busy cores), hence 1;  use_cholmod : prefer CHOLMOD over splu;
+    loaded machine (50x measured on 2 busy cores), hence 1;  workers : processes solving
+    states in parallel (``parallel``; e.g. 2 on 2 cores; 1 = in this process);  use_cholmod : prefer CHOLMOD over splu;
     armijo, max_backtracks : line search;  max_step : largest nodal move per Newton step,
     in mean edge lengths;  damping_min : smallest damping ``beta / (Y t)_cloth``;
     lbfgs_history : L-BFGS memory;  on_fail : "warn" (log + flag) | "raise"
@@ -53,9 +56,11 @@ class SolverOptions:
     exact_contact_hessian: bool = False
     hessian: str = "shifted"
     max_shifts: int = 6
+    extrapolate: bool = True
     contact_passes: int = 3
     device: str = "cpu"
     threads: int | None = 1
+    workers: int = 1
     use_cholmod: bool = True
     armijo: float = 1e-4
     max_backtracks: int = 40

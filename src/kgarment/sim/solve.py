@@ -122,7 +122,16 @@ def solve_states(model: SimModel, design: np.ndarray, states: Sequence[SimState]
     if options.threads is not None:
         torch.set_num_threads(options.threads)
     try:
-        results = _solve_all(model, design, states, warm, options)
+        if options.workers > 1 and len(states) > 1:
+            from kgarment.sim.parallel import solve_parallel
+
+            results = solve_parallel(model, design, states, warm, options)
+            for r in results:
+                log.info("state %s: %s in %d iterations, %.3f s (worker)", r.name,
+                         "converged" if r.converged else "NOT converged", r.convergence.iterations,
+                         r.convergence.wall_time)
+        else:
+            results = _solve_all(model, design, states, warm, options)
     finally:
         torch.set_num_threads(saved_threads)
     _report(results, options)

@@ -1,0 +1,51 @@
+"""Solving states in worker processes (``SolverOptions.workers > 1``).
+
+CHOLMOD (through scikit-sparse) holds the GIL while it factorises, so threads do not
+overlap; states are independent, so they go to a pool of processes instead.  The pool is
+created on first use and kept for the rest of the session; each task carries the model,
+one state and its warm start (a few MB, milliseconds to pickle).  Results come back in
+the order of the states.  Workers are forked (POSIX): "spawn" would re-run an unguarded
+calling script in every worker.  They run torch single-threaded, so no OpenMP state
+inherited from the parent is used.
+"""
+
+from __future__ import annotations
+
+import atexit
+import multiprocessing as mp
+from concurrent.futures import ProcessPoolExecutor
+
+_POOLS: dict[int, ProcessPoolExecutor] = {}
+
+
+def _pool(workers: int) -> ProcessPoolExecutor:
+    pool = _POOLS.get(workers)
+    if pool is None:
+        method = "fork" if "fork" in mp.get_all_start_methods() else "spawn"
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method))
+        _POOLS[workers] = pool
+    return pool
+
+
+@atexit.register
+def shutdown() -> None:
+    """Stop the worker processes (also done at interpreter exit)."""
+    for pool in _POOLS.values():
+        pool.shutdown(wait=False, cancel_futures=True)
+    _POOLS.clear()
+
+
+def _task(model, design, state, warm, options):
+    from kgarment.sim.solve import _solve_all
+
+    return _solve_all(model, design, [state], [warm], options)[0]
+
+
+def solve_parallel(model, design, states, warm, options) -> list:
+    """One task per state on ``options.workers`` processes (each single-process)."""
+    from dataclasses import replace
+
+    sub = replace(options, workers=1)
+    pool = _pool(options.workers)
+    futures = [pool.submit(_task, model, design, s, w, sub) for s, w in zip(states, warm)]
+    return [f.result() for f in futures]
