@@ -217,15 +217,42 @@ def imls(p: torch.Tensor, bv: torch.Tensor, bn: torch.Tensor, bh: torch.Tensor,
     return f, gf, hf
 
 
+def gather(bv, bn, bh, index, valid, nearest):
+    """Per-candidate quantities that stay fixed until the neighbour lists change:
+    ``(V, N, 1/h, |v|^2, n.v, valid, v0, n0)`` with V, N : (P, K, 3), the rest (P, K) and
+    v0, n0 : (P, 3) the nearest vertex (fallback plane).  Used by :func:`imls_value`."""
+    V, N = bv[index], bn[index]
+    return (V, N, 1.0 / bh[index], (V * V).sum(-1), (N * V).sum(-1), valid.to(bv.dtype),
+            bv[nearest], bn[nearest])
+
+
+def imls_value(p: torch.Tensor, pre) -> torch.Tensor:
+    """f (P,) from :func:`gather`'s quantities, without forming the (P, K, 3) offsets:
+    ``|p - v|^2 = |p|^2 - 2 p.v + |v|^2`` and ``n.(p - v) = n.p - n.v``."""
+    V, N, hinv, vv, nv, valid, v0, n0 = pre
+    d2 = (p * p).sum(1)[:, None] - 2.0 * torch.einsum("pkc,pc->pk", V, p) + vv
+    q = torch.clamp(1.0 - d2 * hinv, min=0.0) * valid
+    q2 = q * q
+    w = q2 * q2
+    phi = torch.einsum("pkc,pc->pk", N, p) - nv
+    D = w.sum(1)
+    covered = D > 0
+    f_imls = (w * phi).sum(1) / torch.where(covered, D, torch.ones_like(D))
+    return torch.where(covered, f_imls, (n0 * (p - v0)).sum(1))
+
+
 def contact(p: torch.Tensor, k: torch.Tensor, bv, bn, bh, index, valid, nearest,
-            order: int = 0, exact_hessian: bool = False):
+            order: int = 0, exact_hessian: bool = False, pre=None):
     """Penalty ``k min(f, 0)^2`` per point.
 
-    p : (P, 3); k : (P,) N/m.  Returns energy (P,) J, gradient (P, 3) N or None and
-    Hessian (P, 3, 3) N/m or None (Gauss-Newton unless ``exact_hessian``).
-    Derivatives are evaluated only for penetrating points.
+    p : (P, 3); k : (P,) N/m; ``pre`` : optional :func:`gather` output for these lists.
+    Returns energy (P,) J, gradient (P, 3) N or None and Hessian (P, 3, 3) N/m or None
+    (Gauss-Newton unless ``exact_hessian``).  Derivatives are evaluated only for
+    penetrating points.
     """
-    f, _, _ = imls(p, bv, bn, bh, index, valid, nearest, order=0)
+    if pre is None:
+        pre = gather(bv, bn, bh, index, valid, nearest)
+    f = imls_value(p, pre)
     neg = torch.clamp(f, max=0.0)
     e = k * neg * neg
     if order == 0:

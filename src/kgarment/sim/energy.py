@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from kgarment.sim.contact import contact, update_neighbors
+from kgarment.sim.contact import contact, gather, update_neighbors
 from kgarment.sim.materials import (
     check_design,
     clutch_material,
@@ -134,6 +134,7 @@ class StateProblem:
         self.elem_sel, self.elem_pos = T(pat.elem_select, torch.long), T(pat.elem_pos, torch.long)
         self.vert_sel, self.vert_pos = T(pat.vert_select, torch.long), T(pat.vert_pos.ravel(), torch.long)
         self.cache = None
+        self._cache_obj = None
         self.m_garment = model.n_faces
         self.n_evals = 0
 
@@ -144,12 +145,13 @@ class StateProblem:
         return self.model.initial_positions(self.state.motion.garment_x0)
 
     def _contact_args(self, x: torch.Tensor):
+        """(bv, bn, bh, index, valid, nearest) for the current neighbour lists at x."""
         self.cache = update_neighbors(self.body, x.detach().cpu().numpy(), self.cache)
         c = self.cache
-        key = id(c)
-        if getattr(self, "_cache_key", None) != key:
+        if self._cache_obj is not c:
             self._cache_t = (self._t(c.index, torch.long), self._t(c.valid), self._t(c.nearest, torch.long))
-            self._cache_key = key
+            self._cache_obj = c
+            self._pre = gather(self.bv, self.bn, self.bh, *self._cache_t)
         return (self.bv, self.bn, self.bh) + self._cache_t
 
     def _check(self, value: torch.Tensor, term: str, what: str = "energy") -> None:
@@ -166,7 +168,7 @@ class StateProblem:
         e_m, g_m, h_m = membrane(x, self.tri, self.G, self.weight, self.mu, self.lam, self.relaxed,
                                  order=order, projection=proj)
         e_c, g_c, h_c = contact(x, self.k_contact, *self._contact_args(x), order=order,
-                                exact_hessian=exact or self.exact_contact_hessian)
+                                exact_hessian=exact or self.exact_contact_hessian, pre=self._pre)
         e_s, g_s = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=min(order, 1))
         total = e_m.sum() + e_c.sum() + e_s.sum()
         if check:
@@ -203,7 +205,7 @@ class StateProblem:
     def terms(self, x: torch.Tensor) -> tuple[dict[str, float], np.ndarray]:
         """Energy by term (J) and per-element membrane energy (M,) J at x."""
         e_m, _, _ = membrane(x, self.tri, self.G, self.weight, self.mu, self.lam, self.relaxed, order=0)
-        e_c, _, _ = contact(x, self.k_contact, *self._contact_args(x), order=0)
+        e_c, _, _ = contact(x, self.k_contact, *self._contact_args(x), order=0, pre=self._pre)
         e_s, _ = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=0)
         split = self._split_terms(e_m, e_c, e_s)
         for term, val in split.items():
