@@ -1,0 +1,275 @@
+"""What the studio edits, without any web wiring: design, attachments, clutches, budget.
+
+A :class:`StudioState` holds one problem's body and garment with the editable layers:
+
+- ``design`` (m,) bool, reinforced faces (the manual design, "A");
+- ``attached`` (m,) bool, faces glued to the body (starts as the garment's rings);
+- ``clutches``, a list of :class:`~kgarment.clutch.ClutchSpec` (rest coordinates);
+- the budget ``problem.design.target_area`` (share of the garment's area).
+
+Every edit bumps ``revision`` and marks the state ``dirty`` until it is saved; edits go
+through methods that validate first and change nothing on error, and each can be undone.
+All methods hold ``lock`` so the page's callbacks and background jobs may share a state.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import threading
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from kgarment.clutch import ClutchSpec, ClutchStrip, MeshTopology
+from kgarment.clutch.errors import ClutchError
+from kgarment.design.beso import X_MIN
+from kgarment.errors import KgarmentError
+from kgarment.studio import brush, placement
+
+log = logging.getLogger(__name__)
+UNDO_DEPTH = 50
+LAYERS = ("design", "attached")
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """The editable layers at one moment (for undo)."""
+
+    design: np.ndarray
+    attached: np.ndarray
+    clutches: tuple
+    target_area: float
+
+
+class StudioState:
+    """The editable layers of one problem (see the module docstring).
+
+    problem : kgarment.problem.Problem; body : Body; garment : Garment (its ``attached``
+    is the starting attachment layer); clutches : ClutchSpec list (default: the
+    problem's); design, attached : (m,) bool or None.
+    """
+
+    def __init__(self, problem, body, garment, clutches=None, design=None, attached=None):
+        from kgarment.problem import clutch_specs
+
+        self.lock = threading.RLock()
+        self.problem = problem
+        self.body = body
+        self.base_garment = garment
+        m = garment.n_faces
+        self.topology = MeshTopology(garment.rest_vertices, garment.faces)
+        self.graph = brush.FaceGraph(garment.rest_vertices, garment.faces)
+        self.landmarks = _landmarks(body)
+        self.design = _mask(design, m, "design", False)
+        self.attached = _mask(attached, m, "attachments", None, garment.attached)
+        specs = list(clutch_specs(problem, body) if clutches is None else clutches)
+        self._strips: dict[ClutchSpec, ClutchStrip] = {}
+        for s in specs:  # every clutch must fit the garment; the first that does not is the error
+            self._strip(s)
+        self.clutches: list[ClutchSpec] = specs
+        self.revision = 0
+        self.dirty = False
+        self._undo: list[Snapshot] = []
+
+    # ----- read-only views --------------------------------------------------------------
+    @property
+    def n_faces(self) -> int:
+        return self.base_garment.n_faces
+
+    @property
+    def areas(self) -> np.ndarray:
+        """(m,) rest face areas, m^2."""
+        return self.graph.areas
+
+    @property
+    def garment(self):
+        """The garment with the current attachment layer."""
+        return dataclasses.replace(self.base_garment, attached=self.attached.copy())
+
+    @property
+    def budget(self) -> float:
+        return float(self.problem.design.target_area)
+
+    def coverage(self) -> float:
+        """Reinforced share of the garment's area, in [0, 1]."""
+        return brush.coverage(self.design, self.areas)
+
+    def design_values(self, design: np.ndarray | None = None) -> np.ndarray:
+        """(m,) float64 design for the simulator: 1.0 reinforced, X_MIN soft cloth."""
+        d = self.design if design is None else np.asarray(design, bool)
+        return np.where(d, 1.0, X_MIN)
+
+    def clutch_names(self) -> list[str]:
+        return [c.name for c in self.clutches]
+
+    def clutch(self, name: str) -> ClutchSpec:
+        for c in self.clutches:
+            if c.name == name:
+                return c
+        raise KgarmentError(f"no clutch named {name!r}; clutches: {', '.join(self.clutch_names()) or '(none)'}")
+
+    def strips(self) -> list[ClutchStrip]:
+        with self.lock:
+            return [self._strip(s) for s in self.clutches]
+
+    def _strip(self, spec: ClutchSpec) -> ClutchStrip:
+        if spec not in self._strips:
+            self._strips[spec] = placement.build(spec, self.topology, self.landmarks)
+        return self._strips[spec]
+
+    def rest_point(self, face: int, bary) -> np.ndarray:
+        """(3,) rest position of a (face, barycentric (3,)) point of the garment."""
+        if not 0 <= face < self.n_faces:
+            raise KgarmentError(f"face {face} is not a face of the garment (0..{self.n_faces - 1})")
+        return self.graph.rest_point(self.base_garment.rest_vertices, self.base_garment.faces, face, bary)
+
+    # ----- undo -------------------------------------------------------------------------
+    def snapshot(self) -> Snapshot:
+        return Snapshot(self.design.copy(), self.attached.copy(), tuple(self.clutches), self.budget)
+
+    def _record(self) -> None:
+        self._undo.append(self.snapshot())
+        del self._undo[:-UNDO_DEPTH]
+
+    def _changed(self) -> None:
+        self.revision += 1
+        self.dirty = True
+
+    def undo(self) -> bool:
+        """Restore the layers before the last edit; False when there is nothing to undo."""
+        with self.lock:
+            if not self._undo:
+                return False
+            s = self._undo.pop()
+            self.design, self.attached, self.clutches = s.design, s.attached, list(s.clutches)
+            self._set_budget(s.target_area)
+            self._changed()
+            return True
+
+    def mark_saved(self) -> None:
+        self.dirty = False
+
+    # ----- painting ---------------------------------------------------------------------
+    def paint(self, face: int, point, radius: float, value: bool = True, layer: str = "design",
+              mode: str = "surface", record: bool = True) -> int:
+        """Set the faces under a brush dab to ``value`` on ``layer`` ("design" or
+        "attached"); ``point`` (3,) rest coordinates on ``face``. Returns faces changed.
+        ``record=False`` for the later dabs of one stroke (one undo step per stroke)."""
+        if layer not in LAYERS:
+            raise KgarmentError(f"layer {layer!r}; allowed: {', '.join(LAYERS)}")
+        with self.lock:
+            try:
+                faces = brush.brush_faces(self.graph, int(face), point, float(radius), mode)
+            except ValueError as exc:
+                raise KgarmentError(str(exc)) from None
+            new, changed = brush.apply(getattr(self, layer), faces, bool(value))
+            if changed:
+                if record:
+                    self._record()
+                setattr(self, layer, new)
+                self._changed()
+            return changed
+
+    def set_layer(self, layer: str, mask, record: bool = True) -> None:
+        """Replace a whole layer with ``mask`` (m,) bool."""
+        if layer not in LAYERS:
+            raise KgarmentError(f"layer {layer!r}; allowed: {', '.join(LAYERS)}")
+        new = _mask(mask, self.n_faces, layer, False)
+        with self.lock:
+            if record:
+                self._record()
+            setattr(self, layer, new)
+            self._changed()
+
+    def set_budget(self, target_area: float) -> None:
+        """The reinforced-area budget A* in [0.01, 1] (problem.design.target_area)."""
+        if not 0.01 <= float(target_area) <= 1.0:
+            raise KgarmentError(f"budget {target_area!r} is outside [0.01, 1]")
+        with self.lock:
+            if float(target_area) != self.budget:
+                self._record()
+                self._set_budget(float(target_area))
+                self._changed()
+
+    def _set_budget(self, value: float) -> None:
+        d = dataclasses.replace(self.problem.design, target_area=float(value))
+        self.problem = dataclasses.replace(self.problem, design=d)
+
+    # ----- clutches ---------------------------------------------------------------------
+    def add_clutch(self, spec: ClutchSpec) -> ClutchStrip:
+        """Add a clutch (its name must be new and it must fit on the garment)."""
+        with self.lock:
+            if spec.name in self.clutch_names():
+                raise ClutchError(f"a clutch named {spec.name!r} exists already")
+            strip = self._strip(spec)
+            self._record()
+            self.clutches.append(spec)
+            self._changed()
+            return strip
+
+    def replace_clutch(self, name: str, spec: ClutchSpec) -> ClutchStrip:
+        """Replace clutch ``name`` by ``spec`` (which may rename it); nothing changes on error."""
+        with self.lock:
+            old = self.clutch(name)
+            if spec.name != name and spec.name in self.clutch_names():
+                raise ClutchError(f"a clutch named {spec.name!r} exists already")
+            strip = self._strip(spec)
+            if spec != old:
+                self._record()
+                self.clutches[self.clutches.index(old)] = spec
+                self._changed()
+            return strip
+
+    def edit_clutch(self, name: str, /, **changes) -> ClutchStrip:
+        """Change fields of clutch ``name`` (length, width, prestrain, clip, name)."""
+        allowed = {"length", "width", "prestrain", "clip", "name"}
+        bad = set(changes) - allowed
+        if bad:
+            raise KgarmentError(f"cannot change {sorted(bad)}; allowed: {sorted(allowed)}")
+        with self.lock:
+            return self.replace_clutch(name, dataclasses.replace(self.clutch(name), **changes))
+
+    def move_clutch(self, name: str, start) -> ClutchStrip:
+        """Move clutch ``name`` to start at ``start`` (3,) (rest coordinates), same heading."""
+        with self.lock:
+            spec = placement.moved(self.clutch(name), start, self.topology, self.landmarks)
+            return self.replace_clutch(name, spec)
+
+    def aim_clutch(self, name: str, towards) -> ClutchStrip:
+        """Turn clutch ``name`` to head towards ``towards`` (3,) (rest coordinates)."""
+        with self.lock:
+            spec = placement.aimed(self.clutch(name), towards, self.topology, self.landmarks)
+            return self.replace_clutch(name, spec)
+
+    def delete_clutch(self, name: str) -> None:
+        with self.lock:
+            spec = self.clutch(name)
+            self._record()
+            self.clutches.remove(spec)
+            self._changed()
+
+    def new_clutch_name(self, base: str = "clutch") -> str:
+        return placement.unique_name(self.clutch_names(), base)
+
+
+def _landmarks(body) -> Mapping | None:
+    if not body.rigged:
+        return None
+    from kgarment.clutch.landmarks import body_landmarks
+
+    try:
+        return body_landmarks(body)
+    except KgarmentError as exc:  # an unusual rig: clutches by point only
+        log.warning("no clutch landmarks on this body: %s", exc)
+        return None
+
+
+def _mask(value, m: int, what: str, fill, default=None) -> np.ndarray:
+    if value is None:
+        return np.full(m, bool(fill)) if default is None else np.asarray(default, bool).copy()
+    a = np.asarray(value)
+    if a.shape != (m,):
+        raise KgarmentError(f"the {what} has {a.size} faces, the garment {m}")
+    return a.astype(bool) if a.dtype == bool else a > 0.5
