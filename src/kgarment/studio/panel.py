@@ -1,0 +1,273 @@
+"""The studio's control panel (viser GUI): tabs View, Edit, Simulate, Optimise, File.
+
+Every control calls a :class:`kgarment.studio.app.Studio` method through
+``studio.guarded`` so a bad input shows a message and changes nothing. Values the server
+sets itself (when a clutch is selected, a file opened, ...) fire the update callbacks with
+no client; those are ignored, so only the user's changes act.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kgarment.studio import view
+from kgarment.studio.placement import LENGTH_RANGE, WIDTH_RANGE
+
+NONE = "(none)"
+
+
+class Panel:
+    """Builds the controls for ``studio`` and keeps them in step with its state."""
+
+    def __init__(self, studio):
+        self.s = studio
+        gui = studio.server.gui
+        gui.configure_theme(control_width="large")
+        self.status = gui.add_markdown("")
+        self.message = gui.add_markdown("")
+        tabs = gui.add_tab_group()
+        with tabs.add_tab("View"):
+            self._view_tab(gui)
+        with tabs.add_tab("Edit"):
+            self._edit_tab(gui)
+        with tabs.add_tab("Simulate"):
+            self._simulate_tab(gui)
+        with tabs.add_tab("Optimise"):
+            self._optimise_tab(gui)
+        with tabs.add_tab("File"):
+            self._file_tab(gui)
+        self.rebuild_for_state()
+
+    # ----- helpers ----------------------------------------------------------------------
+    def _on(self, handle, fn):
+        """Call ``fn(value)`` guarded when the *user* changes ``handle``."""
+        @handle.on_update
+        def _(event):
+            if event.client is not None:
+                self.s.guarded(fn, handle.value)
+        return handle
+
+    def _button(self, gui, label, fn, **kw):
+        b = gui.add_button(label, **kw)
+
+        @b.on_click
+        def _(event):
+            self.s.guarded(fn)
+        return b
+
+    # ----- tabs -------------------------------------------------------------------------
+    def _view_tab(self, gui) -> None:
+        s = self.s
+        self.motion = self._on(gui.add_dropdown("Motion", ["rest"]), self._set("motion"))
+        self.clutch_state = self._on(gui.add_dropdown("Clutches", ["ON", "OFF"]),
+                                     lambda v: self._apply("clutches_on", v == "ON"))
+        self.pose = self._on(gui.add_slider("Pose (rest to target)", 0.0, 1.0, 0.05, 1.0), self._set("pose"))
+        self._button(gui, "Play motion", s.play)
+        self.mode = self._on(gui.add_dropdown("Colour", list(view.MODES)), self._set("mode"))
+        self.show_body = self._on(gui.add_checkbox("Show body", True), self._set("show_body"))
+        self.legend = gui.add_markdown("")
+
+    def _edit_tab(self, gui) -> None:
+        from kgarment.studio.app import TOOLS
+
+        s = self.s
+        self.tool = self._on(gui.add_dropdown("Tool", list(TOOLS)), self._set_tool)
+        self.radius = self._on(gui.add_slider("Brush radius (m)", 0.005, 0.15, 0.005, 0.02), self._set("radius", False))
+        self.brush_mode = self._on(gui.add_dropdown("Brush reach", ["surface", "euclidean"]),
+                                   self._set("brush_mode", False))
+        self.coverage = gui.add_markdown("")
+        self.budget = self._on(gui.add_slider("Budget (area share)", 0.01, 1.0, 0.01, 0.15), self._set_budget)
+        self.face = gui.add_number("Face id", 0, min=0, step=1)
+        self._button(gui, "Apply tool at face", lambda: s.click_face(int(self.face.value)))
+        self._button(gui, "Clear reinforcement", lambda: self._layer("design", False))
+        self._button(gui, "Undo", s.undo)
+        with gui.add_folder("Clutches"):
+            self.clutch = self._on(gui.add_dropdown("Clutch", [NONE]), lambda v: s.select_clutch(None if v == NONE else v))
+            self.cname = self._on(gui.add_text("Name", ""), lambda v: s.edit_selected(name=v.strip()))
+            self.length = self._on(gui.add_slider("Length (m)", *LENGTH_RANGE, 0.005, 0.10),
+                                   lambda v: s.edit_selected(length=float(v)))
+            self.width = self._on(gui.add_slider("Width (m)", *WIDTH_RANGE, 0.001, 0.01),
+                                  lambda v: s.edit_selected(width=float(v)))
+            self.prestrain = self._on(gui.add_slider("Prestrain", 0.8, 1.0, 0.01, 1.0),
+                                      lambda v: s.edit_selected(prestrain=float(v)))
+            self.clip = self._on(gui.add_checkbox("Clip at the edge", False), lambda v: s.edit_selected(clip=bool(v)))
+            self._button(gui, "Delete clutch", s.delete_selected, color="red")
+            self.start_mark = gui.add_dropdown("Start landmark", [NONE])
+            self.towards_mark = gui.add_dropdown("Towards landmark", [NONE])
+            self._button(gui, "Add clutch at landmarks",
+                         lambda: s.add_clutch_at_landmarks(self.start_mark.value, self.towards_mark.value))
+
+    def _simulate_tab(self, gui) -> None:
+        s = self.s
+        self.sim_folder = gui.add_folder("Motions to simulate")
+        self.sim_boxes: dict = {}
+        self._button(gui, "Simulate design A", lambda: s.simulate("A", self._sim_motions()))
+        self._button(gui, "Simulate design B", lambda: s.simulate("B", self._sim_motions()))
+        self._button(gui, "Stop simulation", s.stop_simulation)
+        self._button(gui, "Pin A as B", s.pin_as_b)
+        self.b_source = gui.add_text("Design B from", "", hint="a design .npz/.npy/.txt, a run folder or RUN@K")
+        self._button(gui, "Load design B", lambda: s.load_b(self.b_source.value))
+        self.sim_status = gui.add_markdown("")
+        self.results = gui.add_markdown("")
+
+    def _optimise_tab(self, gui) -> None:
+        s = self.s
+        self.run_out = gui.add_text("New run folder", "", hint="empty: runs/studio/studio-<date>-<time>")
+        self.max_it = gui.add_number("Max iterations", 0, min=0, step=1, hint="0: the problem's setting")
+        self._button(gui, "Start optimisation",
+                     lambda: s.optimise(self.run_out.value.strip() or None, int(self.max_it.value) or None))
+        self._button(gui, "Stop optimisation", s.stop_optimisation)
+        self.opt_status = gui.add_markdown("")
+        self.plot = gui.add_image(np.full((30, 52, 3), 255, np.uint8), label="Progress")
+        self.run_path = gui.add_text("Run folder", "")
+        self._button(gui, "Open run", lambda: s.open_run(self.run_path.value.strip()))
+        self.iteration = self._on(gui.add_slider("Iteration", 0, 1, 1, 0, disabled=True), lambda v: s.show_iteration(int(v)))
+        self.follow = gui.add_checkbox("Follow the latest iteration", True)
+        self.run_info = gui.add_markdown("")
+        self._button(gui, "Load iteration into design A", s.use_iteration)
+        self._button(gui, "Use iteration as design B", lambda: s.use_iteration(as_b=True))
+        self.export_path = gui.add_text("Export iteration to", "design.npz")
+        self._button(gui, "Export iteration", lambda: s.export_iteration(self.export_path.value))
+
+    def _file_tab(self, gui) -> None:
+        s = self.s
+        self.session_path = gui.add_text("Session folder", "")
+        self._button(gui, "Save session", lambda: s.save(self.session_path.value))
+        self.open_path = gui.add_text("Open", "", hint="a problem file (.toml), a run folder or a session folder")
+        self._button(gui, "Open", lambda: s.open(self.open_path.value))
+        self.export_a_path = gui.add_text("Export design A to", "design.npz")
+        self._button(gui, "Export design A", lambda: s.export_a(self.export_a_path.value))
+
+    # ----- callbacks --------------------------------------------------------------------
+    def _set(self, name: str, redraw: bool = True):
+        def fn(value):
+            self._apply(name, value, redraw)
+        return fn
+
+    def _apply(self, name: str, value, redraw: bool = True) -> None:
+        setattr(self.s.settings, name, value)
+        if redraw:
+            self.s.redraw(body=name in ("motion", "pose", "show_body"))
+
+    def _set_tool(self, value) -> None:
+        self.s.settings.tool = value
+        self.s.pending_start = None
+        hints = {"place clutch": "click the clutch's start on the garment, then a point it should head to",
+                 "move clutch": "click where the selected clutch should start",
+                 "aim clutch": "click a point the selected clutch should head to",
+                 "select": "click a clutch to select it; drag to turn the view"}
+        self.s.say(hints.get(value, f"{value}: click or drag on the garment (radius {self.s.settings.radius:.3f} m)"))
+        self.s.redraw(body=False)
+
+    def _set_budget(self, value) -> None:
+        self.s.state.set_budget(float(value))
+        self.refresh_status()
+
+    def _layer(self, layer: str, value: bool) -> None:
+        self.s.state.set_layer(layer, np.full(self.s.state.n_faces, value))
+        self.s.say("reinforcement cleared (undo restores it)")
+        self.s.redraw(body=False)
+
+    def _sim_motions(self) -> list:
+        chosen = [m for m, box in self.sim_boxes.items() if box.value]
+        self.s.settings.sim_motions = chosen
+        return chosen
+
+    # ----- showing state ----------------------------------------------------------------
+    def rebuild_for_state(self) -> None:
+        """Options that depend on the opened problem (motions, landmarks, clutches)."""
+        st, s = self.s.state, self.s.settings
+        self.motion.options = ["rest"] + list(st.base_garment.motion_names)
+        marks = sorted(k for k in (st.landmarks or {}) if not k.endswith((".left", ".right")))
+        self.start_mark.options = marks or [NONE]
+        self.towards_mark.options = marks or [NONE]
+        for box in self.sim_boxes.values():
+            box.remove()
+        with self.sim_folder:
+            self.sim_boxes = {m: self.s.server.gui.add_checkbox(m, m in s.sim_motions) for m in st.problem.motions}
+        self.sync_settings()
+        self.sync_clutch()
+        self.show_results()
+        self.show_run()
+
+    def sync_settings(self) -> None:
+        s = self.s.settings
+        self.motion.value = s.motion
+        self.clutch_state.value = "ON" if s.clutches_on else "OFF"
+        self.pose.value = s.pose
+        self.mode.value = s.mode
+        self.show_body.value = s.show_body
+        self.tool.value = s.tool
+        self.radius.value = s.radius
+        self.brush_mode.value = s.brush_mode
+        self.budget.value = round(self.s.state.budget, 2)
+
+    def sync_clutch(self) -> None:
+        st, name = self.s.state, self.s.selected
+        self.clutch.options = [NONE] + st.clutch_names()
+        self.clutch.value = name or NONE
+        if name is not None:
+            c = st.clutch(name)
+            self.cname.value = c.name
+            self.length.value = float(np.clip(c.length, *LENGTH_RANGE))
+            self.width.value = float(np.clip(c.width, *WIDTH_RANGE))
+            self.prestrain.value = float(np.clip(c.prestrain, 0.8, 1.0))
+            self.clip.value = bool(c.clip)
+        self.refresh_status()
+
+    def clutch_defaults(self) -> dict:
+        """Length, width, prestrain, clip for a new clutch (the sliders' values)."""
+        return {"length": float(self.length.value), "width": float(self.width.value),
+                "prestrain": float(self.prestrain.value), "clip": bool(self.clip.value)}
+
+    def refresh_status(self) -> None:
+        st = self.s.state
+        cov, budget = 100 * st.coverage(), 100 * st.budget
+        over = " (over budget)" if cov > budget + 1e-9 else ""
+        self.coverage.content = f"**Reinforced: {cov:.1f}%** of the garment area; budget {budget:.0f}%{over}"
+        saved = "unsaved changes" if st.dirty else "saved" if self.s.session_dir else "not saved yet"
+        self.status.content = (f"**kgarment studio**: {st.base_garment.name}, {st.n_faces} faces, "
+                               f"{len(st.clutches)} clutches; reinforced {cov:.1f}% / {budget:.0f}%; {saved}")
+        if self.s.session_dir is not None and not self.session_path.value:
+            self.session_path.value = str(self.s.session_dir)
+
+    def show_message(self, text: str, error: bool) -> None:
+        self.message.content = ("**Error:** " if error else "") + text
+
+    def show_legend(self, text: str) -> None:
+        self.legend.content = text
+
+    def show_sim_status(self, text: str) -> None:
+        self.sim_status.content = text
+
+    def show_opt_status(self, text: str) -> None:
+        self.opt_status.content = text
+
+    def show_results(self) -> None:
+        from kgarment.studio.evaluate import results_table
+
+        a = self.s.eval_a
+        stale = a is not None and a.revision != self.s.state.revision
+        self.results.content = results_table(a, self.s.eval_b, stale)
+
+    def follow_latest(self) -> bool:
+        return bool(self.follow.value)
+
+    def show_run(self) -> None:
+        from kgarment.studio.runs import progress_image
+
+        run = self.s.run
+        if run is None:
+            self.iteration.disabled = True
+            self.run_info.content = "No run open."
+            return
+        n = run.n_iterations
+        self.iteration.max = max(n - 1, 1)
+        self.iteration.disabled = n == 0
+        self.iteration.value = min(self.s.run_k, max(n - 1, 0))
+        self.run_info.content = f"{run.folder}: {n} iterations. " + (run.summary(self.s.run_k) if n else "")
+        self.plot.image = progress_image(run.metrics)
+        if self.s.opt_job is not None and self.s.opt_job.running and run.metrics:
+            row = run.metrics[-1]
+            self.opt_status.content = f"iteration {row['iteration']}: area {100 * row['area']:.1f}%, " \
+                                      f"objective {row['objective']:.4f}"
