@@ -4,7 +4,7 @@ PY      ?= python3
 VENV    := .venv
 VPY     := $(VENV)/bin/python
 STAMP   := $(VENV)/.kgarment-installed
-DEB     := libsuitesparse-dev
+DEB     := libsuitesparse-dev chromium chromium-driver
 OUT     ?= runs/demo
 
 .PHONY: demo test setup deb bench clean
@@ -25,7 +25,7 @@ $(STAMP): pyproject.toml | $(VPY)
 	$(VPY) -m pip install -q --upgrade pip
 	# The CPU build of torch first (a bare `torch` requirement would pull a CUDA build).
 	$(VPY) -m pip install -q torch==2.13.0
-	$(VPY) -m pip install -q -e '.[dev,solver,fabrication]'
+	$(VPY) -m pip install -q -e '.[dev,solver,fabrication,studio]'
 	touch $(STAMP)
 
 setup: $(STAMP)
