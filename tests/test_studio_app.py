@@ -215,3 +215,23 @@ def test_cli_serves_the_page(tmp_path, anny_body):
     bad = subprocess.run([sys.executable, "-c", code, "studio", "missing.toml"], cwd=tmp_path,
                          capture_output=True, text=True, check=False)
     assert bad.returncode == 1 and "not found" in bad.stderr
+
+
+def test_studio_rho_equals_kgarment_evaluate(anny_body):
+    """The studio's simulation gives the numbers of ``kgarment evaluate`` (same solves)."""
+    from kgarment.cli_design import evaluate_design
+    from kgarment.problem import build_clutches
+    from kgarment.studio.evaluate import evaluate
+    from kgarment.studio.session import build_state
+
+    p = problem()
+    p = dataclasses.replace(p, design=dataclasses.replace(p.design, objective="compliance"))
+    st = build_state(Opened("problem", p), anny_body)
+    d = np.zeros(st.n_faces, bool)
+    d[::3] = True
+    mine = evaluate(p, st.body, st.garment, build_clutches(p, st.body, st.base_garment), d)
+    theirs = evaluate_design(p, st.design_values(d))
+    assert [(r["motion"], r["state"]) for r in mine.rows] == [(r["motion"], r["state"]) for r in theirs]
+    for a, b in zip(mine.rows, theirs):
+        assert a["rho"] == pytest.approx(b["rho"], rel=1e-6)
+        assert a["energy_full"] == pytest.approx(b["energy_full"], rel=1e-6)

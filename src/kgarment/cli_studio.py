@@ -64,6 +64,9 @@ def add_parser(sub, common) -> None:
     sp = sub.add_parser("studio", help="interactive design page in the browser: view, place clutches, paint, "
                         "simulate, optimise (viser)")
     common(sp)
+    for action in sp._actions:  # the shared positional also takes runs and sessions here
+        if action.dest == "problem":
+            action.help = "problem file, design run folder or studio session folder; default: the three-motion shirt"
     sp.description = ("Serve the studio page for PROBLEM (a problem file), RUN (a design run folder) or a studio "
                       "session folder; without one, the built-in three-motion shirt.")
     sp.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1: this machine only)")
