@@ -75,7 +75,7 @@ def _cli(args, tmp_path):
     return r.returncode, r.stdout, r.stderr
 
 
-@pytest.mark.parametrize("cmd", [[], ["motions"], ["garments"], ["render"], ["demo"], ["clutches"], ["simulate"], ["design"], ["evaluate"], ["examples"], ["fabricate"]])
+@pytest.mark.parametrize("cmd", [[], ["motions"], ["garments"], ["render"], ["demo"], ["clutches"], ["simulate"], ["design"], ["evaluate"], ["examples"], ["fabricate"], ["studio"]])
 def test_help_everywhere(cmd, capsys):
     with pytest.raises(SystemExit) as e:
         main(cmd + ["--help"])

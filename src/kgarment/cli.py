@@ -258,6 +258,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_parsers(sub, common)
     add_fabricate(sub, common)
+    from kgarment.cli_studio import add_parser as add_studio
+
+    add_studio(sub, common)
 
     sp = sub.add_parser("demo", help="the main job: design the three-motion shirt (examples/shirt_three_motions.toml)")
     common(sp, problem=False)
