@@ -55,7 +55,7 @@ class SolverOptions:
     projection: str = "analytic"
     exact_contact_hessian: bool = False
     hessian: str = "shifted"
-    max_shifts: int = 6
+    max_shifts: int = 3
     extrapolate: bool = True
     contact_passes: int = 3
     device: str = "cpu"
