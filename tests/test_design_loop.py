@@ -74,7 +74,7 @@ def test_resume_is_bit_identical(tmp_path):
 
 
 def test_protected_faces(anny_body):
-    from kgarment.cli_design import protected_faces
+    from kgarment.design.driver import protected_faces
     from kgarment.clutch import build_clutch
     from kgarment.clutch.layouts import default_layout
     from kgarment.garment import make_garment

@@ -16,36 +16,6 @@ log = logging.getLogger("kgarment")
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
-def build_setup(problem, body, garment, strips, device: str = "cpu"):
-    """The design loop's precomputed setup for a problem (model, motions, filter, ...)."""
-    from kgarment.design import BesoParams
-    from kgarment.design.loop import DesignSetup
-    from kgarment.sim import SolverOptions, build_model
-    from kgarment.simulate import sim_motions
-
-    d = problem.design
-    params = BesoParams(**{k: v for k, v in dataclasses.asdict(d).items()
-                           if k not in ("objective", "protect_attachments", "protect_clutch_margin")})
-    use_clutches = strips if d.objective != "passive" else []
-    model = build_model(garment.rest_vertices, garment.faces, use_clutches, preset=problem.solver.preset)
-    s = problem.solver
-    opts = SolverOptions(method=s.method, tol=s.tol, max_iter=s.max_iter, device=device)
-    return DesignSetup(model, sim_motions(body, garment), d.objective, params, opts,
-                       protected=protected_faces(garment, use_clutches, d.protect_attachments, d.protect_clutch_margin))
-
-
-def protected_faces(garment, strips, attachments: bool, margin: float):
-    """(m,) bool faces kept reinforced: attachment rings and/or faces whose centroid is
-    within ``margin`` metres of a clutch anchor; None when nothing is protected."""
-    keep = garment.attached.copy() if attachments else np.zeros(garment.n_faces, bool)
-    if margin > 0 and strips:
-        cent = garment.rest_vertices[garment.faces].mean(axis=1)
-        anchors = np.concatenate([c.vertices[c.anchors] for c in strips])
-        d = np.linalg.norm(cent[:, None, :] - anchors[None, :, :], axis=2).min(axis=1)
-        keep |= d <= margin
-    return keep if keep.any() else None
-
-
 def _expected_iterations(p) -> int:
     return math.ceil(math.log(p.target_area) / math.log(1 - p.er)) + 2 * p.window
 
@@ -59,38 +29,20 @@ def _progress_line(row: dict, motions) -> str:
 def cmd_design(args) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from kgarment.clutch import save_clutches
     from kgarment.cli import _problem
-    from kgarment.design.loop import initial_state, run_loop
-    from kgarment.design.run import load_checkpoint, prepare_run_folder, save_checkpoint
-    from kgarment.problem import build_body, build_clutches, build_garment, clutch_specs, load_problem, problem_to_dict
+    from kgarment.design.driver import finish, open_run
 
     if args.resume:
-        run = prepare_run_folder(args.resume, resume=True)
-        p = load_problem(run / "problem.toml")
+        dr = open_run(None, args.resume, resume=True, device=args.device)
     else:
         p = _problem(args)
         if args.max_iterations:
             p = dataclasses.replace(p, design=dataclasses.replace(p.design, max_iterations=args.max_iterations))
-        run = prepare_run_folder(args.out, force=args.force)
-    print(p.describe())
-    body = build_body(p)
-    garment = build_garment(p, body)
-    strips = build_clutches(p, body, garment)
-    if not args.resume:
-        import tomli_w
-
-        specs = clutch_specs(p, body)
-        if specs:
-            save_clutches(run / "clutches.toml", specs, garment.rest_vertices, garment.faces)
-        if p.source:
-            (run / "problem.source.toml").write_text(Path(p.source).read_text())
-        (run / "problem.toml").write_text(tomli_w.dumps(problem_to_dict(p, run / "clutches.toml" if specs else None)))
-        (run / "problem.txt").write_text(p.describe() + "\n")
-    setup = build_setup(p, body, garment, strips, args.device)
-    st = load_checkpoint(run) if args.resume else initial_state(setup)
-    print(f"garment {garment.name}: {garment.n_faces} faces, {len(strips)} clutches, "
-          f"{len(setup.states())} states per iteration; run folder {run}")
+        dr = open_run(p, args.out, force=args.force, device=args.device)
+    print(dr.problem.describe())
+    setup, st, run = dr.setup, dr.state, dr.run
+    print(f"garment {dr.garment.name}: {dr.garment.n_faces} faces, {len(dr.strips)} clutches, "
+          f"{len(setup.states())} states per iteration ({setup.solver.workers} worker processes); run folder {run}")
     motions = list(setup.motions)
     total = _expected_iterations(setup.params)
     t0 = time.time()
@@ -105,19 +57,16 @@ def cmd_design(args) -> int:
                 log.warning("iteration %d: states not converged: %s", row["iteration"], row["unconverged_states"])
 
         try:
-            run_loop(setup, st, checkpoint=lambda s: save_checkpoint(run, s), progress=progress)
+            finish(dr, progress=progress)
         except KeyboardInterrupt:
             print(f"\ninterrupted after iteration {st.iteration - 1}; continue with: kgarment design --resume {run}")
             return 130
-    from kgarment.design.report import finish_run
-
-    paths = finish_run(run, setup, st, body, garment, strips)
     last = st.metrics[-1]
     print(f"\n{len(st.metrics)} iterations in {time.time() - t0:.0f} s; final {_progress_line(last, motions)}")
     print(f"islands {last['islands']} ({last['islands_with_clutches']} counting clutches as links); "
           f"clutch ends on reinforcement {last['clutch_ends_supported']}/{last['clutch_ends']}")
     print(f"results in {run}/: metrics.csv, metrics.json, progress.png, designs.npz, final/")
-    for path in paths:
+    for path in dr.paths:
         print(f"  {path}")
     return 0
 
@@ -173,6 +122,8 @@ def evaluate_design(problem, design: np.ndarray, device: str = "cpu") -> list[di
     if len(design) != garment.n_faces:
         raise KgarmentError(f"the design has {len(design)} faces, the problem's garment {garment.n_faces}")
     strips = build_clutches(problem, body, garment)
+    from kgarment.design.driver import build_setup
+
     setup = build_setup(problem, body, garment, strips, device)
     keyed = setup.states()
     states = [s for _, s in keyed]

@@ -97,12 +97,21 @@ class DesignSpec:
 
 @dataclass(frozen=True)
 class SolverSpec:
-    """[solver] and [materials]: simulator settings."""
+    """[solver] and [materials]: simulator settings.
+
+    tol : the scaled force residual of :class:`kgarment.sim.SolverOptions` (its module doc).
+    1e-4 for design: measured on the three-motion shirt after a BESO step, total energies
+    within 3e-5 and per-face energy densities within 0.3% (L1) of a 1e-6 solve, at 1.6x
+    fewer Newton iterations than 1e-5 and about 3x fewer than 1e-6.
+    workers : processes solving states in parallel; 0 = one per core, at most 8 (results do
+    not depend on it).
+    """
 
     preset: str = "paper"
     method: str = "newton"
-    tol: float = 1e-6
+    tol: float = 1e-4
     max_iter: int = 200
+    workers: int = 0
 
 
 @dataclass(frozen=True)
@@ -248,7 +257,7 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
     if "preset" in mats:
         solver["preset"] = mats["preset"]
     solver = _section(SolverSpec, "solver", solver, {"preset": ("paper", "reference"), "method": ("newton", "lbfgs")},
-                      {"tol": (1e-14, 1.0), "max_iter": (1, 100000)})
+                      {"tol": (1e-14, 1.0), "max_iter": (1, 100000), "workers": (0, 256)})
     return Problem(body, names, user, garment, clutches, design, solver, source)
 
 

@@ -64,7 +64,7 @@ def evaluate(problem, body, garment, strips, design: np.ndarray, motions=None, *
     when the garment, clutches and solver settings are the same. report(text) is called
     before each solve; cancelled() is checked between solves (raises Cancelled).
     """
-    from kgarment.cli_design import build_setup
+    from kgarment.design.driver import build_setup
     from kgarment.design.metrics import Stored, relative_energy_density
     from kgarment.sim import solve_states
 

@@ -80,7 +80,7 @@ def run_optimisation(inp: RunInputs, run, *, device: str = "cpu", force: bool = 
     the run folder stays resumable (``kgarment design --resume RUN``). ``finish`` writes
     final/ (design files, renders) at the end. Returns the LoopState.
     """
-    from kgarment.cli_design import build_setup
+    from kgarment.design.driver import build_setup
     from kgarment.design.loop import initial_state, run_loop
     from kgarment.design.run import prepare_run_folder, save_checkpoint
 

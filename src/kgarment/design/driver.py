@@ -1,0 +1,125 @@
+"""A design run from a problem to a finished run folder, for the CLI and ``reproduce``.
+
+:func:`open_run` prepares (or reopens) the run folder, writes the resolved problem and
+clutch files, builds body, garment, clutches and the loop's setup, and loads the
+checkpoint when resuming; :func:`finish` runs the loop to the end with a checkpoint
+after every iteration, then writes the final design and its renders.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass
+class DesignRun:
+    """An open run: its folder, the problem and everything built from it.
+
+    run : folder;  problem : kgarment.problem.Problem;  body, garment, strips : as built;
+    setup : kgarment.design.loop.DesignSetup;  state : kgarment.design.loop.LoopState;
+    paths : files written by :func:`finish`.
+    """
+
+    run: Path
+    problem: object
+    body: object
+    garment: object
+    strips: list
+    setup: object
+    state: object
+    paths: list = dataclasses.field(default_factory=list)
+
+    @property
+    def final_design(self) -> np.ndarray:
+        """(m,) the last evaluated design in {x_min, 1}."""
+        return np.where(self.state.designs[-1], 1.0, self.setup.params.x_min)
+
+
+def run_status(run) -> str:
+    """"new" (no checkpoint), "unfinished" or "finished" (final design written)."""
+    run = Path(run)
+    ck = run / "checkpoint.npz"
+    if not ck.is_file():
+        return "new"
+    with np.load(ck) as z:
+        done = bool(z["done"])
+    return "finished" if done and (run / "final" / "design.npz").is_file() else "unfinished"
+
+
+def build_setup(problem, body, garment, strips, device: str = "cpu"):
+    """The design loop's precomputed setup for a problem (model, motions, filter, ...)."""
+    from kgarment.design import BesoParams
+    from kgarment.design.loop import DesignSetup
+    from kgarment.sim import SolverOptions, build_model
+    from kgarment.simulate import sim_motions
+
+    d = problem.design
+    params = BesoParams(**{k: v for k, v in dataclasses.asdict(d).items()
+                           if k not in ("objective", "protect_attachments", "protect_clutch_margin")})
+    use_clutches = strips if d.objective != "passive" else []
+    model = build_model(garment.rest_vertices, garment.faces, use_clutches, preset=problem.solver.preset)
+    s = problem.solver
+    opts = SolverOptions(method=s.method, tol=s.tol, max_iter=s.max_iter, device=device,
+                         workers=s.workers or min(os.cpu_count() or 1, 8))
+    return DesignSetup(model, sim_motions(body, garment), d.objective, params, opts,
+                       protected=protected_faces(garment, use_clutches, d.protect_attachments, d.protect_clutch_margin))
+
+
+def protected_faces(garment, strips, attachments: bool, margin: float):
+    """(m,) bool faces kept reinforced: attachment rings and/or faces whose centroid is
+    within ``margin`` metres of a clutch anchor; None when nothing is protected."""
+    keep = garment.attached.copy() if attachments else np.zeros(garment.n_faces, bool)
+    if margin > 0 and strips:
+        cent = garment.rest_vertices[garment.faces].mean(axis=1)
+        anchors = np.concatenate([c.vertices[c.anchors] for c in strips])
+        d = np.linalg.norm(cent[:, None, :] - anchors[None, :, :], axis=2).min(axis=1)
+        keep |= d <= margin
+    return keep if keep.any() else None
+
+
+def open_run(problem, run, *, resume: bool = False, force: bool = False, device: str = "cpu") -> DesignRun:
+    """Prepare a run folder for ``problem`` (or reopen it with ``resume``; the problem is
+    then read from the folder and the argument may be None)."""
+    import tomli_w
+
+    from kgarment.clutch import save_clutches
+    from kgarment.design.loop import initial_state
+    from kgarment.design.run import load_checkpoint, prepare_run_folder
+    from kgarment.problem import build_body, build_clutches, build_garment, clutch_specs, load_problem, problem_to_dict
+
+    run = prepare_run_folder(run, force=force, resume=resume)
+    if resume:
+        problem = load_problem(run / "problem.toml")
+    body = build_body(problem)
+    garment = build_garment(problem, body)
+    strips = build_clutches(problem, body, garment)
+    if not resume:
+        specs = clutch_specs(problem, body)
+        if specs:
+            save_clutches(run / "clutches.toml", specs, garment.rest_vertices, garment.faces)
+        if problem.source:
+            (run / "problem.source.toml").write_text(Path(problem.source).read_text())
+        clutch_file = run / "clutches.toml" if specs else None
+        (run / "problem.toml").write_text(tomli_w.dumps(problem_to_dict(problem, clutch_file)))
+        (run / "problem.txt").write_text(problem.describe() + "\n")
+    setup = build_setup(problem, body, garment, strips, device)
+    st = load_checkpoint(run) if resume else initial_state(setup)
+    return DesignRun(run, problem, body, garment, strips, setup, st)
+
+
+def finish(dr: DesignRun, progress: Callable[[dict], None] | None = None) -> DesignRun:
+    """Iterate to the end (checkpoint after every iteration), then write the final design
+    and its renders into ``dr.run / "final"``."""
+    from kgarment.design.loop import run_loop
+    from kgarment.design.report import finish_run
+    from kgarment.design.run import save_checkpoint
+
+    run_loop(dr.setup, dr.state, checkpoint=lambda s: save_checkpoint(dr.run, s), progress=progress)
+    dr.paths = finish_run(dr.run, dr.setup, dr.state, dr.body, dr.garment, dr.strips)
+    return dr
