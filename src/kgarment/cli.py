@@ -261,6 +261,9 @@ def build_parser() -> argparse.ArgumentParser:
     from kgarment.cli_studio import add_parser as add_studio
 
     add_studio(sub, common)
+    from kgarment.cli_reproduce import add_parser as add_reproduce
+
+    add_reproduce(sub, common)
 
     sp = sub.add_parser("demo", help="the main job: design the three-motion shirt (examples/shirt_three_motions.toml)")
     common(sp, problem=False)
@@ -280,7 +283,7 @@ def main(argv=None) -> int:
     logging.basicConfig(level=level, format="%(message)s")
     for noisy in ("anny", "warp", "matplotlib", "PIL"):
         logging.getLogger(noisy).setLevel(max(level, logging.WARNING))
-    if args.verbose == 0 and getattr(args, "command", None) in ("design", "demo"):
+    if args.verbose == 0 and getattr(args, "command", None) in ("design", "demo", "reproduce"):
         logging.getLogger("kgarment.sim").setLevel(logging.WARNING)  # the progress bar says enough
     if not getattr(args, "command", None):
         ap.print_help()

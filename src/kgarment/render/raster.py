@@ -102,9 +102,11 @@ def render_png(layers: list[Layer], path, views=STANDARD_VIEWS, height_px: int =
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     projected = [project(layers, v) for v in views]
-    allpts = np.concatenate([p.reshape(-1, 2) for p, _ in projected])
-    lo, hi = allpts.min(0), allpts.max(0)
-    span = hi - lo
+    # every view framed on its own centre, all at one scale (a garment off the body's
+    # axis, an arm sleeve say, would otherwise sit in a corner of a wide empty panel)
+    boxes = [(p.reshape(-1, 2).min(0), p.reshape(-1, 2).max(0)) for p, _ in projected]
+    span = np.max([h - lo_ for lo_, h in boxes], axis=0)
+    centres = [(lo_ + h) / 2 for lo_, h in boxes]
     pad = 0.03 * span.max()
     aspect = (span[0] + 2 * pad) / (span[1] + 2 * pad)
     dpi = 100
@@ -114,8 +116,9 @@ def render_png(layers: list[Layer], path, views=STANDARD_VIEWS, height_px: int =
     axes = np.atleast_1d(axes)
     for ax, (polys, cols), view, i in zip(axes, projected, views, range(len(views))):
         ax.add_collection(PolyCollection(polys, facecolors=cols, edgecolors="none", antialiased=False))
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        c = centres[i]
+        ax.set_xlim(c[0] - span[0] / 2 - pad, c[0] + span[0] / 2 + pad)
+        ax.set_ylim(c[1] - span[1] / 2 - pad, c[1] + span[1] / 2 + pad)
         ax.set_aspect("equal")
         ax.axis("off")
         ax.set_title(labels[i] if labels else view, fontsize=9)

@@ -1,0 +1,1 @@
+"""Reproducing the paper: experiments, baselines, evaluation and the report (``kgarment reproduce``)."""

@@ -1,0 +1,76 @@
+"""Figures of the reproduction report (matplotlib, Agg)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+KINDS = (("ours", "#1f3b73"), ("line", "#d98c1f"), ("compliance", "#7a9e3a"), ("random", "#999999"))
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def rho_bars(path: Path, doc: dict) -> str:
+    """Grouped bars of rho ON per (experiment, motion) for our design and the baselines;
+    returns the path relative to the report folder."""
+    plt = _plt()
+    labels, vals = [], {k: [] for k, _ in KINDS}
+    err = []
+    for e in doc["experiments"].values():
+        ev = e["evaluations"]
+        for m in e["motions"]:
+            labels.append(f"{e['name']}\n{m}" if len(e["motions"]) > 1 else e["name"])
+            for k, _ in KINDS[:3]:
+                vals[k].append(ev[k]["rho"][m]["on"])
+            rnd = [r["rho"][m]["on"] for r in ev["random"]]
+            vals["random"].append(float(np.mean(rnd)) if rnd else np.nan)
+            err.append(float(np.std(rnd)) if len(rnd) > 1 else 0.0)
+    x = np.arange(len(labels))
+    w = 0.2
+    fig, ax = plt.subplots(figsize=(max(7.0, 0.55 * len(labels) + 2), 3.6), dpi=90)
+    for i, (k, c) in enumerate(KINDS):
+        ax.bar(x + (i - 1.5) * w, vals[k], w, color=c, label=k, yerr=err if k == "random" else None)
+    ax.axhline(1.0, color="k", lw=0.8, ls=":")
+    ax.set_xticks(x, labels, rotation=60, ha="right", fontsize=6)
+    ax.set_ylabel("rho ON")
+    ax.legend(fontsize=7, ncol=4)
+    ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return f"img/{path.name}"
+
+
+def emergent_figure(path: Path, doc: dict, out: Path) -> str | None:
+    """Our design beside the compliance and line baselines (the paper's last figure) for
+    the three-motion shirt, or the first multi-motion experiment there is."""
+    exps = doc["experiments"]
+    pick = exps.get("shirt_three_motions") or next((e for e in exps.values() if e["multi"]), None)
+    pick = pick or next(iter(exps.values()), None)
+    if pick is None:
+        return None
+    plt = _plt()
+    kinds = [k for k in ("ours", "compliance", "line") if k in pick["images"]]
+    fig, axes = plt.subplots(1, len(kinds), figsize=(4 * len(kinds), 3.2), dpi=90)
+    for ax, k in zip(np.atleast_1d(axes), kinds):
+        ax.imshow(plt.imread(out / pick["images"][k]))
+        r = pick["evaluations"][k]
+        on = np.mean([r["rho"][m]["on"] for m in pick["motions"]])
+        off = np.mean([r["rho"][m]["off"] for m in pick["motions"]])
+        ax.set_title(f"{k}: {r['islands']} island(s), clutch ends {r['clutch_ends_supported']}/{r['clutch_ends']}\n"
+                     f"mean rho ON {on:.2f}, OFF {off:.2f}", fontsize=8)
+        ax.axis("off")
+    fig.suptitle(f"{pick['title']}: emergent properties", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return f"img/{path.name}"

@@ -1,0 +1,148 @@
+"""``kgarment reproduce``: every design experiment, the baselines, and the numbers behind the report.
+
+For each experiment: our design (the ``active`` objective), the compliance baseline
+(a second design run, ON states only), the line, fully reinforced and random baselines at
+the same budget, all evaluated by one :class:`~kgarment.reproduce.evaluate.Evaluator`
+with clutches ON and OFF.  For the sleeve and the three-motion shirt, every design of the
+group is also evaluated on the multi-motion problem (the paper's Table 1).  Everything
+lands in ``OUT/results.json``; runs and evaluations are reused when ``reproduce`` runs
+again, so an interrupted run continues.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import resource
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from kgarment.reproduce.baselines import line_design, random_design
+from kgarment.reproduce.evaluate import EvaluationCache, Evaluator
+from kgarment.reproduce.experiments import (
+    MULTI_OF_GROUP,
+    RESOLUTIONS,
+    Experiment,
+    design_run,
+    experiment_problem,
+    select,
+)
+
+log = logging.getLogger(__name__)
+
+
+def _render_design(path: Path, ev: Evaluator, design: np.ndarray, title: str) -> str:
+    from kgarment.render import render_scene
+
+    g = ev.garment
+    bv, bf = ev.body.rest_vertices, ev.body.faces
+    lo, hi = g.rest_vertices.min(0) - 0.05, g.rest_vertices.max(0) + 0.05  # frame the garment, not the body
+    inside = np.all((bv >= lo) & (bv <= hi), axis=1)
+    bf = bf[inside[bf].all(axis=1)]
+    render_scene(path, bv, bf, g.rest_vertices, g.faces,
+                 clutches=[(c.vertices, c.faces) for c in ev.strips], face_values=(design > 0.5).astype(float),
+                 cmap="Blues", vmin=-0.3, vmax=1.2, value_label="reinforced", title=title, height_px=260)
+    return path.name
+
+
+def _run_summary(outcome) -> dict:
+    rows = outcome.metrics
+    n = max(len(rows), 1)
+    return {"folder": str(outcome.run), "iterations": len(rows), "seconds": outcome.seconds,
+            "seconds_per_iteration": outcome.seconds / n,
+            "newton_per_iteration": float(np.mean([r["newton_iterations"] for r in rows])) if rows else 0.0,
+            "unconverged_iterations": int(sum(1 for r in rows if r["unconverged_states"]))}
+
+
+def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, device: str,
+                   progress: Callable | None) -> dict:
+    """Designs, baselines and evaluations of one experiment -> its results entry."""
+    img = out / "img"
+    t0 = time.time()
+    problem = experiment_problem(exp, res)
+    ours = design_run(problem, out / "runs" / exp.name, device, progress)
+    comp = design_run(experiment_problem(exp, res, "compliance"), out / "runs" / f"{exp.name}-compliance",
+                      device, progress)
+    ev = Evaluator(problem, f"{exp.name}@{res.name}", cache, device)
+    budget = problem.design.target_area
+    g = ev.garment
+    designs = {
+        "ours": ours.design,
+        "compliance": comp.design,
+        "line": line_design(g.rest_vertices, g.faces, ev.setup.end_faces, g.attached, budget),
+        "full": np.ones(g.n_faces),
+    }
+    entry = {"name": exp.name, "title": exp.title, "group": exp.group, "multi": exp.multi,
+             "paper": {m: list(v) for m, v in exp.paper.items()}, "budget": budget,
+             "garment": g.name, "faces": int(g.n_faces), "clutches": len(ev.strips), "motions": ev.motions,
+             "states": len(ev.keyed), "run": _run_summary(ours), "compliance_run": _run_summary(comp),
+             "evaluations": {}, "images": {}}
+    for kind, d in designs.items():
+        log.info("%s: evaluating the %s design", exp.name, kind)
+        entry["evaluations"][kind] = ev.evaluate(d, kind)
+    entry["evaluations"]["random"] = [ev.evaluate(random_design(g.rest_vertices, g.faces, budget, seed), f"random {seed}")
+                                      for seed in range(res.seeds)]
+    for kind in ("ours", "compliance", "line"):
+        entry["images"][kind] = "img/" + _render_design(img / f"{exp.name}_{kind}.png", ev, designs[kind],
+                                                        f"{exp.name}: {kind}")
+    prog = ours.run / "progress.png"
+    if prog.is_file():
+        (img / f"{exp.name}_progress.png").write_bytes(prog.read_bytes())
+        entry["images"]["progress"] = f"img/{exp.name}_progress.png"
+    entry["wall_seconds"] = time.time() - t0
+    np.savez_compressed(out / "designs" / f"{exp.name}.npz", **{k: v > 0.5 for k, v in designs.items()})
+    return entry
+
+
+def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationCache, device: str) -> dict | None:
+    """The group's designs evaluated on its multi-motion problem: rows = motions evaluated
+    on, columns = the motion each design was optimised for, and "all" (the multi design)."""
+    from kgarment.reproduce.experiments import BY_NAME
+
+    multi = MULTI_OF_GROUP.get(group)
+    if multi is None or multi not in results:
+        return None
+    singles = [e for e in results.values() if e["group"] == group and not e["multi"]]
+    if not singles:
+        return None
+    ev = Evaluator(experiment_problem(BY_NAME[multi], res), f"{multi}@{res.name}", cache, device)
+    columns = {}
+    for e in singles:
+        with np.load(out / "designs" / f"{e['name']}.npz") as z:
+            design = np.where(z["ours"], 1.0, 1e-3)
+        (motion,) = e["motions"]
+        columns[motion] = ev.evaluate(design, f"{e['name']} on {multi}")["rho"]
+    columns["all"] = results[multi]["evaluations"]["ours"]["rho"]
+    return {"problem": multi, "motions": ev.motions,
+            "rho_on": {row: {col: columns[col][row]["on"] for col in columns} for row in ev.motions},
+            "rho_off": {row: {col: columns[col][row]["off"] for col in columns} for row in ev.motions}}
+
+
+def reproduce(out: Path, resolution: str = "preview", experiments: str | None = None, device: str = "cpu",
+              progress: Callable | None = None) -> dict:
+    """Run the selected experiments at ``resolution`` into ``out``; returns (and writes
+    ``out/results.json``) everything the report shows."""
+    res = RESOLUTIONS[resolution]
+    exps = select(experiments)
+    out = Path(out)
+    for sub in ("runs", "img", "designs"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+    cache = EvaluationCache(out / "evaluations.json")
+    t0 = time.time()
+    results: dict = {}
+    for exp in exps:
+        log.info("experiment %s (%s resolution)", exp.name, res.name)
+        results[exp.name] = run_experiment(exp, res, out, cache, device, progress)
+    cross = {}
+    for group in ("sleeve", "shirt"):
+        m = cross_evaluate(group, results, res, out, cache, device)
+        if m is not None:
+            cross[group] = m
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # this process; workers are alike
+    doc = {"resolution": res.__dict__, "experiments": results, "cross": cross,
+           "wall_seconds": time.time() - t0, "peak_rss_mb": peak, "device": device}
+    (out / "results.json").write_text(json.dumps(doc, indent=1))
+    return doc

@@ -1,0 +1,108 @@
+"""kgarment reproduce: the baselines' geometry, and a tiny end-to-end run with its report."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from kgarment.reproduce.baselines import face_areas, line_design, line_paths, random_design
+
+
+def grid(n: int = 20, size: float = 0.2):
+    """A flat n x n square sheet of 2 n^2 triangles, size metres wide, z = 0."""
+    xs = np.linspace(0.0, size, n + 1)
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    v = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], 1)
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    f = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return v, f
+
+
+def faces_near(v, f, p, r):
+    c = v[f].mean(1)
+    return np.flatnonzero(np.linalg.norm(c - p, axis=1) < r)
+
+
+def test_line_path_runs_straight_to_the_nearest_attachment():
+    v, f = grid()
+    c = v[f].mean(1)
+    attached = c[:, 0] < 0.01  # the left edge is the attachment ring
+    end = faces_near(v, f, np.array([0.15, 0.1, 0.0]), 0.008)
+    far_end = faces_near(v, f, np.array([0.19, 0.1, 0.0]), 0.008)
+    path = line_paths(v, f, [(end, far_end)], attached)
+    on = c[path]
+    # the path from the nearer end goes left along y = 0.1 to the attachment at x = 0
+    assert on[:, 0].min() < 0.01
+    assert np.all(np.abs(on[:, 1] - 0.1) < 0.03)
+    assert path[end].all() and path[far_end].all()
+
+
+def test_line_and_random_designs_spend_the_budget():
+    v, f = grid()
+    areas = face_areas(v, f)
+    c = v[f].mean(1)
+    attached = c[:, 0] < 0.01
+    ends = [(faces_near(v, f, np.array([0.1, 0.1, 0]), 0.008), faces_near(v, f, np.array([0.15, 0.15, 0]), 0.008))]
+    one = areas.max() / areas.sum()
+    for budget in (0.1, 0.25):
+        d = line_design(v, f, ends, attached, budget)
+        assert abs(areas[d > 0.5].sum() / areas.sum() - budget) <= one
+        r = random_design(v, f, budget, seed=3)
+        assert abs(areas[r > 0.5].sum() / areas.sum() - budget) <= one
+    np.testing.assert_array_equal(random_design(v, f, 0.2, seed=1), random_design(v, f, 0.2, seed=1))
+    assert (random_design(v, f, 0.2, seed=1) != random_design(v, f, 0.2, seed=2)).any()
+
+
+def _cli(args, cwd):
+    r = subprocess.run([sys.executable, "-m", "kgarment.cli", "-q", *args], capture_output=True, text=True, cwd=cwd)
+    return r.returncode, r.stdout, r.stderr
+
+
+def test_unknown_experiment_is_a_one_line_error(tmp_path):
+    rc, out, err = _cli(["reproduce", "--experiments", "arm_flexion,moonwalk", "--out", "r"], tmp_path)
+    assert rc == 2
+    assert err.strip().count("\n") == 0 and "moonwalk" in err and "sleeve_two_motions" in err
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.timeout(900)
+def test_reproduce_tiny_sleeve(tmp_path, anny_body):
+    exps = "arm_flexion,arm_extension,sleeve_two_motions"
+    rc, out, err = _cli(["reproduce", "--resolution", "tiny", "--experiments", exps, "--out", "rep"], tmp_path)
+    assert rc == 0, err
+    rep = tmp_path / "rep"
+    doc = json.loads((rep / "results.json").read_text())
+    assert list(doc["experiments"]) == exps.split(",")
+    for e in doc["experiments"].values():
+        ev = e["evaluations"]
+        assert set(ev) == {"ours", "compliance", "line", "full", "random"}
+        assert len(ev["random"]) == 2
+        for m in e["motions"]:  # rho of the fully reinforced garment is 1 by definition
+            assert ev["full"]["rho"][m]["on"] == pytest.approx(1.0, rel=1e-12)
+            assert ev["full"]["rho"][m]["off"] == pytest.approx(1.0, rel=1e-12)
+        for kind in ("line", "random"):
+            for r in ev[kind] if kind == "random" else [ev[kind]]:
+                assert abs(r["area"] - e["budget"]) < 0.01
+    cross = doc["cross"]["sleeve"]
+    assert set(cross["rho_on"]) == {"arm_flexion.right", "arm_extension.right"}
+    assert set(cross["rho_on"]["arm_flexion.right"]) == {"arm_flexion.right", "arm_extension.right", "all"}
+    md = (rep / "report.md").read_text()
+    page = (rep / "report.html").read_text()
+    for heading in ("Targets", "Single-motion designs", "Multi-motion designs", "Cross-evaluation",
+                    "Emergent properties", "Performance", "Compared with the paper"):
+        assert f"## {heading}" in md and heading in page
+    for src in re.findall(r'<img src="([^"]+)"', page):
+        assert (rep / src).is_file(), src
+    # a second run reuses every design run and evaluation: nothing is recomputed
+    stamp = {p: p.stat().st_mtime_ns for p in rep.glob("runs/*/checkpoint.npz")}
+    evals = (rep / "evaluations.json").read_text()
+    rc, out, err = _cli(["reproduce", "--resolution", "tiny", "--experiments", exps, "--out", "rep"], tmp_path)
+    assert rc == 0, err
+    assert {p: p.stat().st_mtime_ns for p in rep.glob("runs/*/checkpoint.npz")} == stamp
+    assert (rep / "evaluations.json").read_text() == evals
