@@ -76,7 +76,9 @@ def main() -> None:
     ap.add_argument("--preset", default="paper", choices=("paper", "reference"))
     ap.add_argument("--lbfgs-budget", type=float, default=1800.0, help="seconds for all L-BFGS solves of one size")
     ap.add_argument("--lbfgs-states", type=int, default=6, help="how many of the 6 states L-BFGS solves")
+    ap.add_argument("--json", help="merge the figures into this JSON file (e.g. benchmarks/results.json)")
     args = ap.parse_args()
+    figures = {}
     logging.basicConfig(level=logging.WARNING)
     for sub in args.subdivisions:
         g, model, states = setup(sub, args.preset)
@@ -110,7 +112,25 @@ def main() -> None:
         print(f"  Newton is {ratio:.1f}x faster per equilibrium{'' if reached else ' (a lower bound)'}; target >= 20x")
         rel = max(abs(a.total_energy - b.total_energy) / abs(b.total_energy) for a, b in zip(res_l, warm[:n_l]))
         print(f"  energy agreement L-BFGS vs Newton: {rel:.2e} relative")
+        figures[f"subdivision {sub}"] = {
+            "faces": g.n_faces, "newton_cold_s": t_cold, "newton_cold_iterations": it_cold,
+            "newton_warm_s": t_warm, "newton_warm_iterations": it_warm, "lbfgs_per_state_s": per_l,
+            "lbfgs_reached_tol": reached, "ratio": ratio,
+            "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
     print(f"peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+    if args.json:
+        save_json(args.json, "solver", figures)
+
+
+def save_json(path: str, name: str, figures: dict) -> None:
+    """Merge ``{name: figures}`` into the JSON file at ``path``."""
+    import json
+    from pathlib import Path
+
+    p = Path(path)
+    data = json.loads(p.read_text()) if p.is_file() else {}
+    data[name] = figures
+    p.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
 
 
 if __name__ == "__main__":

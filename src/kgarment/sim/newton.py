@@ -32,6 +32,10 @@ lowered the energy by more than 3/4 of the linear prediction (negative curvature
 the step: the garment sliding or buckling), step lengths 2, 4, ... 64 are tried while the
 energy keeps falling.
 
+A solve whose energy has not decreased beyond round-off (1e-11 |E|) over 10 iterations
+stops unconverged ("stalled"); :func:`kgarment.sim.solve.solve_states` then retries it with
+larger shifts (``rescue_shifts``).
+
 Near the solution energy differences fall below float64 round-off of the total energy;
 the Armijo test therefore allows an increase of ``1e-12 |E|`` (round-off), so a full
 Newton step is not rejected for noise.
@@ -51,6 +55,7 @@ from kgarment.sim.energy import StateProblem
 from kgarment.sim.options import Convergence, SolverOptions
 
 log = logging.getLogger(__name__)
+STALL = 10  # iterations without any energy decrease (beyond round-off) that end a solve
 
 
 def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
@@ -76,13 +81,19 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
     history: list[float] = []
     converged = False
     it = 0
+    energies: list[float] = []
     for it in range(opts.max_iter + 1):
         fmax = prob.residual(g)
         history.append(fmax)
+        energies.append(E)
         if fmax <= tol_f:
             converged = True
             break
         if it == opts.max_iter:
+            break
+        if len(energies) > STALL and energies[-1 - STALL] - E <= 1e-11 * abs(E):
+            log.debug("newton %s: stalled at residual %.3e (energy unchanged over %d iterations)", prob.name,
+                      fmax, STALL)
             break
         rhs = g.reshape(-1).cpu().numpy()
         dx = None

@@ -148,6 +148,8 @@ def _solve_all(model, design, states, warm, options) -> list[StateResult]:
         x0 = prob.initial_positions() if w is None else w
         if options.method == "newton":
             x, rec = newton_solve(prob, x0, options, linsolver)
+            if not rec.converged and options.rescue_shifts > options.max_shifts:
+                x, rec = _rescue(prob, x0, x, rec, options, linsolver)
         else:
             x, rec = lbfgs_solve(prob, x0, options)
         log.info("state %s: %s %s in %d iterations, %.3f s, residual %.3g (tol %.3g), max force %.3g N",
@@ -155,6 +157,19 @@ def _solve_all(model, design, states, warm, options) -> list[StateResult]:
                  rec.iterations, rec.wall_time, rec.residual, rec.tolerance, rec.force_max)
         results.append(_result(prob, x, rec))
     return results
+
+
+def _rescue(prob, x0, x, rec, options, linsolver):
+    """Solve again from x0 with larger Hessian shifts; keep the better of both solves
+    (converged, else the lower residual); iterations and time add up."""
+    from dataclasses import replace
+
+    log.info("state %s: not converged (residual %.3g); retrying with up to %d shift increases",
+             prob.name, rec.residual, options.rescue_shifts)
+    x2, rec2 = newton_solve(prob, x0, replace(options, max_shifts=options.rescue_shifts), linsolver)
+    best_x, best = (x2, rec2) if rec2.converged or rec2.residual < rec.residual else (x, rec)
+    return best_x, replace(best, iterations=rec.iterations + rec2.iterations, wall_time=rec.wall_time + rec2.wall_time,
+                           evaluations=rec.evaluations + rec2.evaluations)
 
 
 def _report(results: list[StateResult], options: SolverOptions) -> None:
