@@ -1,7 +1,7 @@
 """The BESO design loop over simulated states, with checkpoints after every iteration.
 
 One iteration: solve every state (motion x activation) for the current design, warm
-started from the previous iteration's equilibria; turn element energy densities into
+started from the previous iteration's equilibria (the last converged one per state); turn element energy densities into
 sensitivities; combine them by the objective; filter; average with the previous
 iteration; record metrics; update the design towards the next target area.
 
@@ -160,7 +160,10 @@ def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
         if setup.protected is not None:
             st.design[setup.protected] = 1.0
     st.alpha_prev = filt
-    st.warm = {s.name: r.x for s, r in zip(states, results)}
+    # an unconverged equilibrium is a poor start: the next iteration starts such a state
+    # from its last converged one (or this one when there is none yet)
+    st.warm = {s.name: r.x if r.converged or s.name not in st.warm else st.warm[s.name]
+               for s, r in zip(states, results)}
     st.iteration += 1
     row["seconds"] = time.time() - t0
     st.metrics.append(row)
