@@ -5,6 +5,10 @@ started from the previous iteration's equilibria (the last converged one per sta
 sensitivities; combine them by the objective; filter; average with the previous
 iteration; record metrics; update the design towards the next target area.
 
+An iteration in which a state did not converge records its metrics (flagged in
+``unconverged_states``) but updates the design with the previous iteration's filtered
+sensitivities, and its objective does not count towards convergence.
+
 Iteration 0 is the fully reinforced garment, so its energies are the references of the
 relative energy density rho (method.md section 7) and of the objective.
 """
@@ -131,10 +135,16 @@ def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
     filt = setup.filter_matrix @ raw
     if setup.params.history and st.alpha_prev is not None:
         filt = 0.5 * (filt + st.alpha_prev)
+    if bad and st.alpha_prev is not None:
+        # an unconverged state's energies are not an equilibrium's: never used silently.
+        # The update goes on with the previous iteration's sensitivities.
+        log.warning("iteration %d: %s did not converge; its sensitivities are not used (the previous "
+                    "iteration's are)", st.iteration, ", ".join(bad))
+        filt = st.alpha_prev
     if setup.protected is not None:
         filt = np.where(setup.protected, filt.max() + 1.0, filt)
     obj = objective_value(setup.objective, energy, st.reference, motions)
-    st.objectives.append(obj)
+    st.objectives.append(obj if not bad else float("nan"))  # NaN: no convergence judged on it
     areas = setup.areas
     frac = float(areas[st.design > 0.5].sum() / areas.sum())
     rho = {f"{k[0]}:{k[1]}": relative_energy_density(st.design, areas, stored[k], st.reference_stored[k],

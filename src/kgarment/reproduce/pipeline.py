@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.design.beso import X_MIN
 from kgarment.reproduce.baselines import line_design, random_design
 from kgarment.reproduce.evaluate import EvaluationCache, Evaluator
 from kgarment.reproduce.experiments import (
@@ -112,7 +113,7 @@ def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationC
     columns = {}
     for e in singles:
         with np.load(out / "designs" / f"{e['name']}.npz") as z:
-            design = np.where(z["ours"], 1.0, 1e-3)
+            design = np.where(z["ours"], 1.0, X_MIN)
         (motion,) = e["motions"]
         columns[motion] = ev.evaluate(design, f"{e['name']} on {multi}")["rho"]
     columns["all"] = results[multi]["evaluations"]["ours"]["rho"]
