@@ -59,6 +59,18 @@ def test_line_and_random_designs_spend_the_budget():
     assert (random_design(v, f, 0.2, seed=1) != random_design(v, f, 0.2, seed=2)).any()
 
 
+def test_best_iteration_is_the_best_converged_one_at_the_target():
+    from kgarment.reproduce.experiments import best_iteration
+
+    rows = [{"iteration": 0, "area": 1.0, "objective": 9.0, "unconverged_states": ""},
+            {"iteration": 1, "area": 0.15, "objective": 2.0, "unconverged_states": ""},
+            {"iteration": 2, "area": 0.15, "objective": 5.0, "unconverged_states": "a[on]"},
+            {"iteration": 3, "area": 0.151, "objective": 3.0, "unconverged_states": ""},
+            {"iteration": 4, "area": 0.15, "objective": 1.0, "unconverged_states": ""}]
+    assert best_iteration(rows, 0.15, 0.015) == 3
+    assert best_iteration(rows[:1], 0.15, 0.015) == 0  # none at the target: the last one
+
+
 def _cli(args, cwd):
     r = subprocess.run([sys.executable, "-m", "kgarment.cli", "-q", *args], capture_output=True, text=True, cwd=cwd)
     return r.returncode, r.stdout, r.stderr
@@ -81,7 +93,7 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
     assert list(doc["experiments"]) == exps.split(",")
     for e in doc["experiments"].values():
         ev = e["evaluations"]
-        assert set(ev) == {"ours", "compliance", "line", "full", "random"}
+        assert set(ev) == {"ours", "ours_last", "compliance", "line", "full", "random"}
         assert len(ev["random"]) == 2
         for m in e["motions"]:  # rho of the fully reinforced garment is 1 by definition
             assert ev["full"]["rho"][m]["on"] == pytest.approx(1.0, rel=1e-12)

@@ -124,12 +124,24 @@ def experiment_problem(exp: Experiment, res: Resolution, objective: str = "activ
 
 @dataclass
 class RunOutcome:
-    """A finished design run: folder, final design (m,), metrics rows, wall time (s)."""
+    """A finished design run: folder, chosen design (m,) and its iteration, the last
+    iteration's design (m,), metrics rows, wall time (s)."""
 
     run: Path
     design: np.ndarray
+    iteration: int
+    last: np.ndarray
     metrics: list
     seconds: float
+
+
+def best_iteration(rows: list[dict], target: float, er: float) -> int:
+    """The iteration to report: the highest objective among the iterations at the target
+    area (within the loop's tolerance) whose states all converged; the last one if none.
+    BESO's objective is not monotone once the target is reached, and the paper samples
+    designs along a run likewise."""
+    ok = [r for r in rows if abs(r["area"] - target) <= 0.005 + er * target and not r["unconverged_states"]]
+    return int(max(ok, key=lambda r: r["objective"])["iteration"]) if ok else int(rows[-1]["iteration"])
 
 
 def design_run(problem, folder: Path, device: str = "cpu",
@@ -151,4 +163,6 @@ def design_run(problem, folder: Path, device: str = "cpu",
         finish(dr, progress=(lambda row: progress(folder.name, row)) if progress else None)
     rows = json.loads((folder / "metrics.json").read_text())
     hist = load_design_history(folder)
-    return RunOutcome(folder, np.where(hist[-1], 1.0, X_MIN), rows, float(sum(r["seconds"] for r in rows)))
+    k = best_iteration(rows, problem.design.target_area, problem.design.er)
+    return RunOutcome(folder, np.where(hist[k], 1.0, X_MIN), k, np.where(hist[-1], 1.0, X_MIN), rows,
+                      float(sum(r["seconds"] for r in rows)))

@@ -53,6 +53,7 @@ def _run_summary(outcome) -> dict:
     rows = outcome.metrics
     n = max(len(rows), 1)
     return {"folder": str(outcome.run), "iterations": len(rows), "seconds": outcome.seconds,
+            "reported_iteration": outcome.iteration,
             "seconds_per_iteration": outcome.seconds / n,
             "newton_per_iteration": float(np.mean([r["newton_iterations"] for r in rows])) if rows else 0.0,
             "unconverged_iterations": int(sum(1 for r in rows if r["unconverged_states"]))}
@@ -72,6 +73,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     g = ev.garment
     designs = {
         "ours": ours.design,
+        "ours_last": ours.last,
         "compliance": comp.design,
         "line": line_design(g.rest_vertices, g.faces, ev.setup.end_faces, g.attached, budget),
         "full": np.ones(g.n_faces),
