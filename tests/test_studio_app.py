@@ -210,8 +210,9 @@ def test_cli_serves_the_page(tmp_path, anny_body):
         assert "<html" in html.lower()
     finally:
         proc.send_signal(signal.SIGINT)
-        rc = proc.wait(30)
-    assert rc == 0
+        rest, _ = proc.communicate(timeout=60)  # keep reading: a full pipe would block the server's exit
+        rc = proc.returncode
+    assert rc == 0, "".join(lines) + rest
     bad = subprocess.run([sys.executable, "-c", code, "studio", "missing.toml"], cwd=tmp_path,
                          capture_output=True, text=True, check=False)
     assert bad.returncode == 1 and "not found" in bad.stderr

@@ -6,13 +6,14 @@ created on first use and kept for the rest of the session; each task carries the
 one state and its warm start (a few MB, milliseconds to pickle).  Results come back in
 the order of the states.  Workers are forked (POSIX): "spawn" would re-run an unguarded
 calling script in every worker.  They run torch single-threaded, so no OpenMP state
-inherited from the parent is used.
+inherited from the parent is used, and ignore Ctrl-C (the main process handles it).
 """
 
 from __future__ import annotations
 
 import atexit
 import multiprocessing as mp
+import signal
 from concurrent.futures import ProcessPoolExecutor
 
 _POOLS: dict[int, ProcessPoolExecutor] = {}
@@ -22,9 +23,15 @@ def _pool(workers: int) -> ProcessPoolExecutor:
     pool = _POOLS.get(workers)
     if pool is None:
         method = "fork" if "fork" in mp.get_all_start_methods() else "spawn"
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method))
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method), initializer=_ignore_sigint)
         _POOLS[workers] = pool
     return pool
+
+
+def _ignore_sigint() -> None:
+    """Workers leave Ctrl-C to the main process (which stops them): a worker interrupted
+    mid-task would leave the pool's shutdown waiting for it forever."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 @atexit.register
