@@ -168,6 +168,13 @@ def write_report(out: Path, doc: dict | None = None) -> tuple[Path, Path]:
     ``out/results.json`` (or ``doc``).  Returns both paths."""
     out = Path(out)
     doc = doc if doc is not None else json.loads((out / "results.json").read_text())
+    for e in doc["experiments"].values():  # the objective once the budget is reached, from the run
+        run = e.get("run", {})
+        metrics = Path(run.get("folder", "")) / "metrics.json"
+        if metrics.is_file():
+            rows = json.loads(metrics.read_text())
+            run["objectives_at_target"] = [r["objective"] for r in rows if abs(r["area"] - e["budget"]) < 0.01
+                                           and not r["unconverged_states"]]
     figures = {}
     if doc["experiments"]:
         figures["rho_bars"] = rho_bars(out / "img" / "rho_on.png", doc)
