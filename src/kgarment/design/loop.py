@@ -7,7 +7,8 @@ iteration; record metrics; update the design towards the next target area.
 
 An iteration in which a state did not converge records its metrics (flagged in
 ``unconverged_states``) but updates the design with the previous iteration's filtered
-sensitivities, and its objective does not count towards convergence.
+sensitivities (unless the previous iteration failed too: the same update would repeat the
+same design and failure), and its objective does not count towards convergence.
 
 Iteration 0 is the fully reinforced garment, so its energies are the references of the
 relative energy density rho (method.md section 7) and of the objective.
@@ -135,12 +136,17 @@ def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
     filt = setup.filter_matrix @ raw
     if setup.params.history and st.alpha_prev is not None:
         filt = 0.5 * (filt + st.alpha_prev)
-    if bad and st.alpha_prev is not None:
+    repeated = bool(st.metrics) and bool(st.metrics[-1]["unconverged_states"])
+    if bad and st.alpha_prev is not None and not repeated:
         # an unconverged state's energies are not an equilibrium's: never used silently.
         # The update goes on with the previous iteration's sensitivities.
         log.warning("iteration %d: %s did not converge; its sensitivities are not used (the previous "
                     "iteration's are)", st.iteration, ", ".join(bad))
         filt = st.alpha_prev
+    elif bad:
+        # twice in a row: the previous sensitivities would give the same design (and the same
+        # failure) forever; use this iteration's, flagged in the metrics
+        log.warning("iteration %d: %s did not converge again; using its sensitivities", st.iteration, ", ".join(bad))
     if setup.protected is not None:
         filt = np.where(setup.protected, filt.max() + 1.0, filt)
     obj = objective_value(setup.objective, energy, st.reference, motions)
