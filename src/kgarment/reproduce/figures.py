@@ -60,14 +60,16 @@ def emergent_figure(path: Path, doc: dict, out: Path) -> str | None:
         return None
     plt = _plt()
     kinds = [k for k in ("ours", "compliance", "line") if k in pick["images"]]
-    fig, axes = plt.subplots(1, len(kinds), figsize=(4 * len(kinds), 3.2), dpi=90)
+    img0 = plt.imread(out / pick["images"][kinds[0]])
+    aspect = img0.shape[0] / img0.shape[1]
+    fig, axes = plt.subplots(len(kinds), 1, figsize=(9, (9 * aspect + 0.5) * len(kinds)), dpi=90)
     for ax, k in zip(np.atleast_1d(axes), kinds):
         ax.imshow(plt.imread(out / pick["images"][k]))
         r = pick["evaluations"][k]
         on = np.mean([r["rho"][m]["on"] for m in pick["motions"]])
         off = np.mean([r["rho"][m]["off"] for m in pick["motions"]])
-        ax.set_title(f"{k}: {r['islands']} island(s), clutch ends {r['clutch_ends_supported']}/{r['clutch_ends']}\n"
-                     f"mean rho ON {on:.2f}, OFF {off:.2f}", fontsize=8)
+        ax.set_title(f"{k}: {r['islands']} island(s), clutch ends {r['clutch_ends_supported']}/{r['clutch_ends']}, "
+                     f"mean rho ON {on:.2f}, OFF {off:.2f}", fontsize=9)
         ax.axis("off")
     fig.suptitle(f"{pick['title']}: emergent properties", fontsize=9)
     fig.tight_layout()
