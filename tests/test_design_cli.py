@@ -69,7 +69,8 @@ def test_resume_from_the_command_line_and_evaluate(tmp_path, anny_body):
     import time
 
     proc = subprocess.Popen([sys.executable, "-m", "kgarment.cli", "design", "p.toml", "--out", "part"], cwd=tmp_path,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # even if ignored here
     metrics = tmp_path / "part" / "metrics.json"
     t0 = time.time()
     while time.time() - t0 < 120 and proc.poll() is None:

@@ -193,8 +193,11 @@ def test_cli_serves_the_page(tmp_path, anny_body):
             "ap = argparse.ArgumentParser(); sub = ap.add_subparsers()\n"
             "def common(sp):\n    sp.add_argument('problem', nargs='?'); sp.add_argument('--device', default='cpu')\n"
             "add_parser(sub, common)\nargs = ap.parse_args(sys.argv[1:])\nsys.exit(args.func(args))\n")
+    # the default SIGINT disposition in the child: a test run started in the background
+    # (nohup make test &) inherits SIGINT ignored, and Python then never raises KeyboardInterrupt
     proc = subprocess.Popen([sys.executable, "-c", code, "studio", "p.toml", "--port", str(port)], cwd=tmp_path,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         url, lines = None, []
         t0 = time.time()
