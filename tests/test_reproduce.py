@@ -10,7 +10,8 @@ import sys
 import numpy as np
 import pytest
 
-from kgarment.reproduce.baselines import face_areas, line_design, line_paths, random_design
+from kgarment.garment.topology import triangle_areas
+from kgarment.reproduce.baselines import line_design, line_paths, random_design
 
 
 def grid(n: int = 20, size: float = 0.2):
@@ -45,7 +46,7 @@ def test_line_path_runs_straight_to_the_nearest_attachment():
 
 def test_line_and_random_designs_spend_the_budget():
     v, f = grid()
-    areas = face_areas(v, f)
+    areas = triangle_areas(v, f)
     c = v[f].mean(1)
     attached = c[:, 0] < 0.01
     ends = [(faces_near(v, f, np.array([0.1, 0.1, 0]), 0.008), faces_near(v, f, np.array([0.15, 0.15, 0]), 0.008))]

@@ -26,7 +26,7 @@ import numpy as np
 from kgarment.design.beso import BesoParams, converged, next_target, one_ring_filter, radius_filter, update_design
 from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
 from kgarment.design.objective import combine_sensitivities, objective_value, states_needed
-from kgarment.garment.topology import face_adjacency
+from kgarment.garment.topology import face_adjacency, triangle_areas
 
 log = logging.getLogger(__name__)
 
@@ -55,7 +55,7 @@ class DesignSetup:
         m = self.model
         X, F = m.garment_rest, m.garment_faces
         tri = X[F]
-        self.areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        self.areas = triangle_areas(X, F)
         if self.params.filter == "radius":
             self.filter_matrix = radius_filter(tri.mean(1), self.areas, self.params.radius)
         else:
@@ -82,11 +82,8 @@ class DesignSetup:
         return out
 
     def clutch_area(self) -> float:
-        total = 0.0
-        for c in self.model.clutches:
-            t = c.vertices[c.faces]
-            total += 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum()
-        return float(total) if self.objective != "passive" else 0.0
+        total = sum(float(triangle_areas(c.vertices, c.faces).sum()) for c in self.model.clutches)
+        return total if self.objective != "passive" else 0.0
 
 
 @dataclass

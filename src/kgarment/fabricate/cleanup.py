@@ -25,7 +25,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from kgarment.errors import KgarmentError
-from kgarment.garment.topology import face_adjacency
+from kgarment.garment.topology import face_adjacency, triangle_areas
 
 log = logging.getLogger(__name__)
 
@@ -139,7 +139,7 @@ def ball_matrix(vertices: np.ndarray, faces: np.ndarray, radius: float, adj=None
     m = len(faces)
     t = vertices[faces]
     cen = t.mean(axis=1)
-    area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    area = triangle_areas(vertices, faces)
     inradius = 2 * area / np.linalg.norm(t - np.roll(t, -1, axis=1), axis=2).sum(axis=1).clip(1e-300)
     i, j = adj.nonzero()
     step = float(np.median(np.linalg.norm(cen[i] - cen[j], axis=1))) if len(i) else radius
@@ -168,7 +168,7 @@ def near_boundary(vertices: np.ndarray, faces: np.ndarray, radius: float) -> np.
     t = np.linspace(0.0, 1.0, 5)[:, None, None]
     pts = ((1 - t) * vertices[be[:, 0]] + t * vertices[be[:, 1]]).reshape(-1, 3)
     tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = triangle_areas(vertices, faces)
     inradius = 2 * area / np.linalg.norm(tri - np.roll(tri, -1, axis=1), axis=2).sum(axis=1).clip(1e-300)
     d, _ = cKDTree(pts).query(tri.mean(axis=1))
     return d < radius + 0.5 * inradius
@@ -196,8 +196,7 @@ def clean_design(faces: np.ndarray, vertices: np.ndarray, solid: np.ndarray, str
     solid0 = np.asarray(solid) > 0.5
     if solid0.shape != (len(faces),):
         raise KgarmentError(f"the design has {solid0.size} faces, the garment {len(faces)}")
-    tri = vertices[faces]
-    areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    areas = triangle_areas(vertices, faces)
     adj = face_adjacency(faces)
     ends = clutch_end_faces(strips, len(faces))
     under = clutch_faces(strips, len(faces))

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kgarment.errors import KgarmentError
+from kgarment.garment.topology import triangle_areas
 
 log = logging.getLogger(__name__)
 METHODS = ("arap", "lscm")
@@ -147,7 +148,6 @@ def flatten(V: np.ndarray, F: np.ndarray, method: str = "arap", iterations: int 
         sa = -sa
     s = np.linalg.svd(face_jacobians(V, F, uv), compute_uv=False)
     strain = np.maximum(s[:, 0] - 1.0, 1.0 - s[:, 1])
-    t = V[F]
-    a3 = float(0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
+    a3 = float(triangle_areas(V, F).sum())
     return Flattening(uv, method, scale, a3, float(np.abs(sa).sum()), l2 * scale / l3.clip(1e-300), strain,
                       int((sa <= 0).sum()))

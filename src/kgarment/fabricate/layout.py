@@ -20,6 +20,7 @@ import numpy as np
 from kgarment.fabricate.flatten import triangle_frames
 from kgarment.fabricate.outline import point_segment_distance, smooth_outline
 from kgarment.fabricate.patterns import PatternSet
+from kgarment.garment.topology import triangle_areas
 
 MM = 1000.0
 SQUARE_MM = 100.0
@@ -86,8 +87,7 @@ def up_direction(V: np.ndarray, F: np.ndarray, uv: np.ndarray, up=(0.0, 0.0, 1.0
     x, y = triangle_frames(V, F)
     u = np.asarray(up, float)
     local = np.stack([x @ u, y @ u], axis=1)  # (f, 2) up projected on each triangle
-    t = V[F]
-    w = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    w = triangle_areas(V, F)
     img = np.einsum("fij,fj->fi", face_jacobians(V, F, uv), local)
     s = (w[:, None] * img).sum(0)
     n = float(np.linalg.norm(s))

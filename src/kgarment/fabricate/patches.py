@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 
-from kgarment.garment.topology import boundary_loops, face_adjacency
+from kgarment.garment.topology import boundary_loops, face_adjacency, triangle_areas
 
 
 @dataclass(frozen=True)
@@ -40,8 +40,7 @@ class PatchMesh:
 
     def face_areas(self) -> np.ndarray:
         """(f,) rest triangle areas, m^2."""
-        t = self.vertices[self.faces]
-        return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+        return triangle_areas(self.vertices, self.faces)
 
     def area(self) -> float:
         return float(self.face_areas().sum())

@@ -15,7 +15,7 @@ from kgarment.body.model import Body
 from kgarment.errors import KgarmentError, unknown
 from kgarment.garment.templates import GarmentTemplate, builtin_templates
 from kgarment.garment.topology import (
-    boundary_loops, check_manifold, clean_face_mask, midpoint_subdivide,
+    boundary_loops, check_manifold, clean_face_mask, midpoint_subdivide, triangle_areas,
 )
 
 ALIASES = {"arm_sleeve": "arm_sleeve.right", "knee_sleeve": "knee_sleeve.right"}
@@ -62,9 +62,7 @@ class Garment:
 
     def face_areas(self, vertices: np.ndarray | None = None) -> np.ndarray:
         """(m,) triangle areas in m^2 (rest shape unless ``vertices`` (n, 3) is given)."""
-        v = self.rest_vertices if vertices is None else vertices
-        tri = v[self.faces]
-        return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        return triangle_areas(self.rest_vertices if vertices is None else vertices, self.faces)
 
     def vertices(self, motion: str = "rest") -> np.ndarray:
         """(n, 3) skin-tight garment in the target pose of ``motion``."""

@@ -8,6 +8,12 @@ import scipy.sparse as sp
 from kgarment.errors import KgarmentError
 
 
+def triangle_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(m,) areas in m^2 of the triangles faces (m, 3) on vertices (n, 3)."""
+    tri = np.asarray(vertices)[np.asarray(faces)]
+    return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+
+
 def unique_edges(faces: np.ndarray):
     """Unique undirected edges (e, 2) and, for each face side (m, 3), its edge id.
 
@@ -96,8 +102,7 @@ def manifold_problems(vertices: np.ndarray, faces: np.ndarray, min_area: float =
     nb = np.bincount(be.reshape(-1), minlength=len(vertices))
     if (nb > 2).any():
         problems.append(f"{int((nb > 2).sum())} vertices join two boundary fans (bowtie)")
-    tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = triangle_areas(vertices, faces)
     if (area < min_area).any():
         problems.append(f"{int((area < min_area).sum())} degenerate triangles (area < {min_area:g} m^2)")
     used = np.zeros(len(vertices), bool)

@@ -20,13 +20,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
 from kgarment.design.beso import X_MIN, one_ring_filter
-from kgarment.garment.topology import face_adjacency
-
-
-def face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(m,) triangle areas, m^2, of vertices (n, 3) and faces (m, 3)."""
-    t = vertices[faces]
-    return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+from kgarment.garment.topology import face_adjacency, triangle_areas
 
 
 def _take_budget(order_key: np.ndarray, areas: np.ndarray, budget: float, x_min: float) -> np.ndarray:
@@ -87,13 +81,13 @@ def line_design(vertices: np.ndarray, faces: np.ndarray, end_faces, attached: np
     path = line_paths(vertices, faces, end_faces, attached)
     graph = dual_graph(vertices, faces)
     dist = dijkstra(graph, indices=np.flatnonzero(path), min_only=True)
-    return _take_budget(np.where(np.isfinite(dist), dist, np.inf), face_areas(vertices, faces), budget, x_min)
+    return _take_budget(np.where(np.isfinite(dist), dist, np.inf), triangle_areas(vertices, faces), budget, x_min)
 
 
 def random_design(vertices: np.ndarray, faces: np.ndarray, budget: float, seed: int, passes: int = 8,
                   x_min: float = X_MIN) -> np.ndarray:
     """A random smooth design (module doc) with the given seed: (m,) in {x_min, 1}."""
-    areas = face_areas(vertices, faces)
+    areas = triangle_areas(vertices, faces)
     filt = one_ring_filter(faces, areas, len(vertices))
     field = np.random.default_rng(seed).standard_normal(len(faces))
     for _ in range(passes):

@@ -20,7 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from kgarment.garment.topology import face_adjacency
+from kgarment.garment.topology import face_adjacency, triangle_areas
 
 RAY_EPS = 1e-12
 
@@ -96,7 +96,7 @@ class FaceGraph:
         F = np.asarray(faces, dtype=np.int64)
         tri = V[F]
         self.centroids = tri.mean(axis=1)
-        self.areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        self.areas = triangle_areas(V, F)
         adj = face_adjacency(F).tocoo()
         w = np.linalg.norm(self.centroids[adj.row] - self.centroids[adj.col], axis=1)
         self.graph = sp.csr_matrix((np.maximum(w, 1e-12), (adj.row, adj.col)), shape=(len(F), len(F)))
