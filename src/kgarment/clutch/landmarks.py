@@ -49,23 +49,36 @@ def _elbow_bisector(J, names, side):
     return b / np.linalg.norm(b)
 
 
-def first_hit(origin: np.ndarray, direction: np.ndarray, triangles: np.ndarray) -> float:
-    """Distance along a ray to the nearest triangle it hits (Moller-Trumbore), inf if none.
+def ray_triangles(origin: np.ndarray, direction: np.ndarray, triangles: np.ndarray, eps: float = 1e-14,
+                  tol: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Moller-Trumbore intersection of one ray with every triangle (both sides count).
 
-    origin, direction : (3,); triangles : (m, 3, 3) metres.
+    origin, direction : (3,); triangles : (m, 3, 3) metres; eps : smallest |determinant|
+    (rays parallel to a triangle miss it); tol : slack on the barycentric bounds.
+    Returns t (m,) ray parameters (distances for a unit direction), u, v (m,) barycentric
+    coordinates of vertices 1 and 2, and hit (m,) bool (in the triangle, t > 0).
     """
     e1 = triangles[:, 1] - triangles[:, 0]
     e2 = triangles[:, 2] - triangles[:, 0]
     p = np.cross(direction, e2)
     det = np.einsum("ij,ij->i", e1, p)
-    ok = np.abs(det) > 1e-14
+    ok = np.abs(det) > eps
     inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
     s = origin - triangles[:, 0]
     u = np.einsum("ij,ij->i", s, p) * inv
     q = np.cross(s, e1)
     v = (q @ direction) * inv
     t = np.einsum("ij,ij->i", e2, q) * inv
-    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+    hit = ok & (u >= -tol) & (v >= -tol) & (u + v <= 1 + tol) & (t > 0)
+    return t, u, v, hit
+
+
+def first_hit(origin: np.ndarray, direction: np.ndarray, triangles: np.ndarray) -> float:
+    """Distance along a ray to the nearest triangle it hits, inf if none.
+
+    origin, direction : (3,); triangles : (m, 3, 3) metres.
+    """
+    t, _, _, hit = ray_triangles(origin, direction, triangles)
     return float(t[hit].min()) if hit.any() else float("inf")
 
 

@@ -20,6 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
+from kgarment.clutch.landmarks import ray_triangles
 from kgarment.garment.topology import face_adjacency, triangle_areas
 
 RAY_EPS = 1e-12
@@ -53,19 +54,7 @@ def ray_hit(origin, direction, vertices: np.ndarray, faces: np.ndarray) -> Hit |
         return None
     d = d / nd
     tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
-    e1 = tri[:, 1] - tri[:, 0]
-    e2 = tri[:, 2] - tri[:, 0]
-    p = np.cross(d, e2)
-    det = np.einsum("ij,ij->i", e1, p)
-    ok = np.abs(det) > RAY_EPS
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    s = o - tri[:, 0]
-    u = np.einsum("ij,ij->i", s, p) * inv
-    q = np.cross(s, e1)
-    v = (q @ d) * inv
-    t = np.einsum("ij,ij->i", e2, q) * inv
-    tol = 1e-9
-    good = ok & (u >= -tol) & (v >= -tol) & (u + v <= 1 + tol) & (t > 0)
+    t, u, v, good = ray_triangles(o, d, tri, eps=RAY_EPS, tol=1e-9)
     if not good.any():
         return None
     idx = np.flatnonzero(good)
