@@ -132,8 +132,7 @@ def evaluate_design(problem, design: np.ndarray, device: str = "cpu") -> list[di
     rows = []
     for (key, _), rf, rd in zip(keyed, full, mine):
         cl = setup.objective != "passive"
-        sf = Stored(rf.garment_energy, float(sum(e.sum() for e in rf.clutch_energy)) if cl else 0.0)
-        sd = Stored(rd.garment_energy, float(sum(e.sum() for e in rd.clutch_energy)) if cl else 0.0)
+        sf, sd = Stored.of(rf, cl), Stored.of(rd, cl)
         rows.append({"motion": key[0], "state": key[1],
                      "rho": relative_energy_density(design, setup.areas, sd, sf, setup.clutch_area()),
                      "energy": float(sd.face_energy[design > 0.5].sum() + sd.clutch_energy),

@@ -35,11 +35,6 @@ class DesignRun:
     state: object
     paths: list = dataclasses.field(default_factory=list)
 
-    @property
-    def final_design(self) -> np.ndarray:
-        """(m,) the last evaluated design in {x_min, 1}."""
-        return np.where(self.state.designs[-1], 1.0, self.setup.params.x_min)
-
 
 def run_status(run) -> str:
     """"new" (no checkpoint), "unfinished" or "finished" (final design written)."""

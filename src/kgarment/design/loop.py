@@ -122,7 +122,7 @@ def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
     alpha, energy, stored = {}, {}, {}
     for (key, _), r in zip(keyed, results):
         alpha[key] = r.garment_density * factor
-        s = Stored(r.garment_energy, float(sum(e.sum() for e in r.clutch_energy)) if setup.objective != "passive" else 0.0)
+        s = Stored.of(r, setup.objective != "passive")
         stored[key] = s
         energy[key] = float(s.face_energy[st.design > 0.5].sum() + s.clutch_energy)
     if st.iteration == 0:

@@ -25,6 +25,12 @@ class Stored:
     face_energy: np.ndarray
     clutch_energy: float = 0.0
 
+    @classmethod
+    def of(cls, result, clutches: bool = True) -> Stored:
+        """From a :class:`kgarment.sim.StateResult`; ``clutches=False`` leaves the
+        clutches' energy out (the passive objective)."""
+        return cls(result.garment_energy, float(sum(e.sum() for e in result.clutch_energy)) if clutches else 0.0)
+
 
 def relative_energy_density(design: np.ndarray, areas: np.ndarray, state: Stored, full: Stored,
                             clutch_area: float = 0.0) -> float:

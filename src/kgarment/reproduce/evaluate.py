@@ -12,8 +12,6 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -32,11 +30,10 @@ class EvaluationCache:
         return self.data.get(key)
 
     def put(self, key: str, value) -> None:
+        from kgarment.design.run import atomic_write_text
+
         self.data[key] = value
-        fd, tmp = tempfile.mkstemp(dir=self.path.parent, suffix=".tmp")
-        with os.fdopen(fd, "w") as f:
-            json.dump(self.data, f, indent=1)
-        os.replace(tmp, self.path)
+        atomic_write_text(self.path, json.dumps(self.data, indent=1))
 
 
 def design_key(design: np.ndarray) -> str:
@@ -128,8 +125,7 @@ class Evaluator:
         setup = self.setup
         rho: dict = {}
         for ((motion, state), _), rf, rd in zip(self.keyed, full, mine):
-            sf = Stored(rf.garment_energy, float(sum(e.sum() for e in rf.clutch_energy)))
-            sd = Stored(rd.garment_energy, float(sum(e.sum() for e in rd.clutch_energy)))
+            sf, sd = Stored.of(rf), Stored.of(rd)
             rho.setdefault(motion, {})[state] = relative_energy_density(design, setup.areas, sd, sf,
                                                                         setup.clutch_area())
         ends = clutch_end_support(design, setup.end_faces)

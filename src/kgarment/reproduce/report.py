@@ -17,19 +17,13 @@ import numpy as np
 
 from kgarment.reproduce.experiments import PAPER_SHIRT_MATRIX
 from kgarment.reproduce.figures import emergent_figure, rho_bars
-from kgarment.reproduce.text import assessment, comparison_paragraph, performance_rows, targets
+from kgarment.reproduce.text import assessment, comparison_paragraph, md_table, performance_rows, targets
 
 log = logging.getLogger(__name__)
 
 
 def _f(v, nd=2) -> str:
     return "–" if v is None or (isinstance(v, float) and not np.isfinite(v)) else f"{v:.{nd}f}"
-
-
-def _table(head: list[str], rows: list[list[str]]) -> list[str]:
-    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-    return out + [""]
 
 
 def random_stats(evals: list[dict], motion: str, state: str) -> tuple[float, float]:
@@ -97,7 +91,7 @@ def build_markdown(doc: dict, figures: dict) -> str:
                    f"{100 * e['budget']:.0f}%; our run took {e['run']['iterations']} iterations, "
                    f"{e['run']['seconds'] / 60:.1f} min.", ""]
             head = ["design", *[f"{m} ON / OFF" for m in e["motions"]], "islands", "clutch ends on reinf.", "area"]
-            md += _table(head, design_rows(e))
+            md += md_table(head, design_rows(e))
             imgs = [f"![{k}]({e['images'][k]})" for k in ("ours", "line", "compliance", "progress") if k in e["images"]]
             md += [" ".join(imgs), ""]
             md += assessment(e) + [""]
@@ -116,7 +110,7 @@ def build_markdown(doc: dict, figures: dict) -> str:
                     p = PAPER_SHIRT_MATRIX.get(row, {}).get(c) if group == "shirt" else None
                     cells.append(_f(m["rho_on"][row][c]) + (f" ({p:.2f})" if p is not None else ""))
                 rows.append([row, *cells])
-            md += [f"**{m['problem']}**", ""] + _table(["evaluated on \\ optimised for", *cols], rows)
+            md += [f"**{m['problem']}**", ""] + md_table(["evaluated on \\ optimised for", *cols], rows)
     md += ["## Emergent properties", ""]
     if "emergent" in figures:
         md += [f"![our design against the compliance and line baselines]({figures['emergent']})", ""]

@@ -11,6 +11,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[3]
 
 
+def md_table(head: list[str], rows: list[list[str]]) -> list[str]:
+    """A Markdown table (and a blank line) as lines."""
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return out + [""]
+
+
 def _ok(flag: bool) -> str:
     return "**met**" if flag else "**MISSED**"
 
@@ -134,8 +141,6 @@ def comparison_paragraph(doc: dict) -> str:
 
 def performance_rows(doc: dict) -> list[str]:
     """Tables: time per experiment, growth with motions, benchmark figures if recorded."""
-    from kgarment.reproduce.report import _table
-
     rows = []
     for e in doc["experiments"].values():
         r = e["run"]
@@ -145,7 +150,7 @@ def performance_rows(doc: dict) -> list[str]:
     out = [f"Measured on this machine ({doc.get('device', 'cpu')}); the whole reproduction took "
            f"{doc['wall_seconds'] / 60:.0f} min in its last session, peak memory {doc['peak_rss_mb']:.0f} MB per "
            "process.", ""]
-    out += _table(["experiment", "faces", "motions", "states", "iterations", "minutes", "s / iteration",
+    out += md_table(["experiment", "faces", "motions", "states", "iterations", "minutes", "s / iteration",
                    "Newton its / state / iteration", "iterations with unconverged states"], rows)
     shirt = [e for e in doc["experiments"].values() if e["group"] in ("shirt", "long_sleeve")]
     if shirt:

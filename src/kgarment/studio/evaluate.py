@@ -99,8 +99,7 @@ def evaluate(problem, body, garment, strips, design: np.ndarray, motions=None, *
         if report:
             report(f"{label}: design, {key[0]} {key[1]} ({2 * k + 2}/{total})")
         mine = solve_states(setup.model, values, [s], warm_start=[full.x], options=setup.solver)[0]
-        sf = Stored(full.garment_energy, float(sum(e.sum() for e in full.clutch_energy)) if clutched else 0.0)
-        sd = Stored(mine.garment_energy, float(sum(e.sum() for e in mine.clutch_energy)) if clutched else 0.0)
+        sf, sd = Stored.of(full, clutched), Stored.of(mine, clutched)
         ev.rows.append({"motion": key[0], "state": key[1],
                         "rho": relative_energy_density(values, setup.areas, sd, sf, setup.clutch_area()),
                         "energy": float(sd.face_energy[d].sum() + sd.clutch_energy),
