@@ -217,6 +217,18 @@ def imls(p: torch.Tensor, bv: torch.Tensor, bn: torch.Tensor, bh: torch.Tensor,
     return f, gf, hf
 
 
+def imls_fast(p: torch.Tensor, bv, bn, bh, index, valid, nearest, order: int = 0):
+    """:func:`imls` through the compiled CPU kernel where it applies (``kernels``)."""
+    from kgarment.sim.membrane import _compiled, _np
+
+    if order == 0 or not _compiled(p):
+        return imls(p, bv, bn, bh, index, valid, nearest, order=order)
+    from kgarment.sim.kernels import imls_order2
+
+    f, gf, hf = imls_order2(*(_np(a) for a in (p, bv, bn, bh, index, valid, nearest)), order)
+    return torch.from_numpy(f), torch.from_numpy(gf), torch.from_numpy(hf) if order == 2 else None
+
+
 def gather(bv, bn, bh, index, valid, nearest):
     """Per-candidate quantities that stay fixed until the neighbour lists change:
     ``(V, N, 1/h, |v|^2, n.v, valid, v0, n0)`` with V, N : (P, K, 3), the rest (P, K) and
@@ -263,7 +275,7 @@ def contact(p: torch.Tensor, k: torch.Tensor, bv, bn, bh, index, valid, nearest,
     if act.numel() == 0:
         return e, grad, hess
     need = 2 if (order >= 2 and exact_hessian) else 1
-    fa, ga, ha = imls(p[act], bv, bn, bh, index[act], valid[act], nearest[act], order=need)
+    fa, ga, ha = imls_fast(p[act], bv, bn, bh, index[act], valid[act], nearest[act], order=need)
     ka = k[act]
     grad[act] = (2.0 * ka * fa)[:, None] * ga
     if order >= 2:

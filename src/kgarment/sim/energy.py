@@ -214,10 +214,10 @@ class StateProblem:
 
     def contact_linearization(self, x: torch.Tensor):
         """IMLS value f (N,) and gradient (N, 3) at every vertex (numpy)."""
-        from kgarment.sim.contact import imls
+        from kgarment.sim.contact import imls_fast
 
         args = self._contact_args(x)
-        f, gf, _ = imls(x, *args, order=1)
+        f, gf, _ = imls_fast(x, *args, order=1)
         return f.cpu().numpy(), gf.cpu().numpy()
 
     def add_contact_stiffness(self, data: np.ndarray, vertices: np.ndarray, gradf: np.ndarray) -> np.ndarray:
