@@ -122,13 +122,13 @@ def evaluate_design(problem, design: np.ndarray, device: str = "cpu") -> list[di
     if len(design) != garment.n_faces:
         raise KgarmentError(f"the design has {len(design)} faces, the problem's garment {garment.n_faces}")
     strips = build_clutches(problem, body, garment)
-    from kgarment.design.driver import build_setup
+    from kgarment.design.driver import build_setup, design_equilibria
 
     setup = build_setup(problem, body, garment, strips, device)
     keyed = setup.states()
     states = [s for _, s in keyed]
     full = solve_states(setup.model, np.ones(garment.n_faces), states, options=setup.solver)
-    mine = solve_states(setup.model, design, states, warm_start=[r.x for r in full], options=setup.solver)
+    mine = full if np.all(design > 0.5) else design_equilibria(setup, design, lambda: full)
     rows = []
     for (key, _), rf, rd in zip(keyed, full, mine):
         cl = setup.objective != "passive"

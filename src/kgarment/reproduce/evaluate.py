@@ -79,25 +79,11 @@ class Evaluator:
                             options=self.setup.solver)
 
     def _solve_design(self, design: np.ndarray):
-        """Equilibria of ``design`` from the skin-tight start (like a design run's first
-        iteration); states that do not converge are retried from the full garment's
-        equilibria, and the converged (else the lower-residual) solution is kept.  The
-        full garment's equilibrium alone is a poor start for a sparse design: measured,
-        200 Newton iterations without converging where the cold start needs 76."""
-        cold = self._solve(design)
-        bad = [i for i, r in enumerate(cold) if not r.converged]
-        if not bad:
-            return cold
-        from kgarment.sim import solve_states
+        """Equilibria of ``design``: cold start, retried from the full garment's equilibria
+        where that fails (:func:`kgarment.design.driver.design_equilibria`)."""
+        from kgarment.design.driver import design_equilibria
 
-        full = self.full()
-        states = [self.keyed[i][1] for i in bad]
-        retry = solve_states(self.setup.model, design, states, warm_start=[full[i].x for i in bad],
-                             options=self.setup.solver)
-        for i, r in zip(bad, retry):
-            if r.converged or r.convergence.residual < cold[i].convergence.residual:
-                cold[i] = r
-        return cold
+        return design_equilibria(self.setup, design, self.full)
 
     def full(self):
         """The fully reinforced garment's equilibria (solved once)."""

@@ -241,6 +241,12 @@ def gather(bv, bn, bh, index, valid, nearest):
 def imls_value(p: torch.Tensor, pre) -> torch.Tensor:
     """f (P,) from :func:`gather`'s quantities, without forming the (P, K, 3) offsets:
     ``|p - v|^2 = |p|^2 - 2 p.v + |v|^2`` and ``n.(p - v) = n.p - n.v``."""
+    from kgarment.sim.membrane import _compiled, _np
+
+    if _compiled(p):
+        from kgarment.sim import kernels
+
+        return torch.from_numpy(kernels.imls_value(_np(p), *(_np(a) for a in pre)))
     V, N, hinv, vv, nv, valid, v0, n0 = pre
     d2 = (p * p).sum(1)[:, None] - 2.0 * torch.einsum("pkc,pc->pk", V, p) + vv
     q = torch.clamp(1.0 - d2 * hinv, min=0.0) * valid

@@ -240,3 +240,31 @@ def imls_order2(p, bv, bn, bh, index, valid, nearest, order):
                 gf[i, c] = bn[v, c]
             f[i] = s
     return f, gf, hf
+
+
+@_njit
+def imls_value(p, V, N, hinv, vv, nv, valid, v0, n0):
+    """IMLS value f (P,) from contact.gather's per-candidate arrays (contact.imls_value)."""
+    P, K = hinv.shape
+    f = np.empty(P)
+    for i in range(P):
+        pp = p[i, 0] * p[i, 0] + p[i, 1] * p[i, 1] + p[i, 2] * p[i, 2]
+        D = 0.0
+        Nsum = 0.0
+        for k in range(K):
+            if valid[i, k] == 0:
+                continue
+            d2 = pp - 2.0 * (V[i, k, 0] * p[i, 0] + V[i, k, 1] * p[i, 1] + V[i, k, 2] * p[i, 2]) + vv[i, k]
+            q = 1.0 - d2 * hinv[i, k]
+            if q <= 0.0:
+                continue
+            q2 = q * q
+            w = q2 * q2 * valid[i, k]
+            D += w
+            Nsum += w * (N[i, k, 0] * p[i, 0] + N[i, k, 1] * p[i, 1] + N[i, k, 2] * p[i, 2] - nv[i, k])
+        if D > 0.0:
+            f[i] = Nsum / D
+        else:
+            f[i] = (n0[i, 0] * (p[i, 0] - v0[i, 0]) + n0[i, 1] * (p[i, 1] - v0[i, 1])
+                    + n0[i, 2] * (p[i, 2] - v0[i, 2]))
+    return f
