@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from kgarment.sim import ImplicitBody, kernels, lame_plane_stress, update_neighbors
-from kgarment.sim.contact import imls, imls_fast
+from kgarment.sim.contact import gather, imls, imls_fast, imls_value
 from kgarment.sim.membrane import TriangleElements, branches, membrane
 from kgarment.sim.synthetic import sphere_body
 
@@ -77,6 +77,15 @@ def test_imls_kernel_matches_torch():
         assert torch.allclose(g1, g0, rtol=1e-10, atol=1e-12)
         if order == 2:
             assert torch.allclose(h1, h0, rtol=1e-9, atol=1e-9 * float(h0.abs().max()))
+    pre = gather(*a)
+    f1 = imls_value(pt, pre)
+    kernels.ENABLED = False
+    try:
+        f0 = imls_value(pt, pre)
+    finally:
+        kernels.ENABLED = True
+    assert torch.allclose(f1, f0, rtol=1e-9, atol=1e-12)
+    assert torch.allclose(f1, imls(pt, *a)[0], rtol=1e-9, atol=1e-12)
 
 
 def test_torch_path_is_used_when_disabled(torch_only):
