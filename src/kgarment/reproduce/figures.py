@@ -68,7 +68,7 @@ def emergent_figure(path: Path, doc: dict, out: Path) -> str | None:
         r = pick["evaluations"][k]
         on = np.mean([r["rho"][m]["on"] for m in pick["motions"]])
         off = np.mean([r["rho"][m]["off"] for m in pick["motions"]])
-        ax.set_title(f"{k}: {r['islands']} island(s), clutch ends {r['clutch_ends_supported']}/{r['clutch_ends']}, "
+        ax.set_title(f"{k}: {r['islands_with_clutches']} part(s), clutch ends {r['clutch_ends_supported']}/{r['clutch_ends']}, "
                      f"mean rho ON {on:.2f}, OFF {off:.2f}", fontsize=9)
         ax.axis("off")
     fig.suptitle(f"{pick['title']}: emergent properties", fontsize=9)
