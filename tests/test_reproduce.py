@@ -113,8 +113,11 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
     for heading in ("Targets", "Single-motion designs", "Multi-motion designs", "Cross-evaluation",
                     "Emergent properties", "Performance", "Compared with the paper"):
         assert f"## {heading}" in md and heading in page
-    for src in re.findall(r'<img src="([^"]+)"', page):
-        assert (rep / src).is_file(), src
+    # the HTML is self-contained (every image embedded); the Markdown links existing files
+    srcs = re.findall(r'<img src="([^"]+)"', page)
+    assert srcs and all(s.startswith("data:image/png;base64,") for s in srcs)
+    links = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
+    assert len(links) == len(srcs) and all((rep / s).is_file() for s in links)
     # a second run reuses every design run and evaluation: nothing is recomputed
     stamp = {p: p.stat().st_mtime_ns for p in rep.glob("runs/*/checkpoint.npz")}
     evals = (rep / "evaluations.json").read_text()

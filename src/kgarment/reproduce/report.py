@@ -124,15 +124,41 @@ def build_markdown(doc: dict, figures: dict) -> str:
     return "\n".join(md)
 
 
-def markdown_to_html(md: str, title: str) -> str:
-    """A small, dependency-free converter for the subset of Markdown the report uses."""
+def compact_images(folder: Path) -> None:
+    """Re-save the PNGs in ``folder`` with a 256-colour palette (renders and plots lose
+    nothing visible; files shrink ~4x, which keeps the committed report small)."""
+    from PIL import Image
+
+    for p in sorted(Path(folder).glob("*.png")):
+        with Image.open(p) as im:
+            if im.mode == "P":
+                continue
+            q = im.convert("RGBA").quantize(colors=256, method=Image.Quantize.FASTOCTREE)
+        q.save(p, optimize=True)
+
+
+def _data_uri(path: Path) -> str:
+    import base64
+
+    return "data:image/png;base64," + base64.b64encode(path.read_bytes()).decode("ascii")
+
+
+def markdown_to_html(md: str, title: str, base: Path | None = None) -> str:
+    """A small, dependency-free converter for the subset of Markdown the report uses.
+    With ``base``, images found under it are embedded (data URIs): one self-contained file."""
     import re
 
     out, table = [], []
 
+    def image(m) -> str:
+        src = m.group(2)
+        if base is not None and (Path(base) / src).is_file():
+            src = _data_uri(Path(base) / src)
+        return f'<img src="{src}" alt="{m.group(1)}">'
+
     def inline(s: str) -> str:
         s = html.escape(s, quote=False)
-        s = re.sub(r"!\[([^\]]*)\]\(([^)]+)\)", r'<img src="\2" alt="\1">', s)
+        s = re.sub(r"!\[([^\]]*)\]\(([^)]+)\)", image, s)
         s = re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", s)
         s = re.sub(r"\*([^*]+)\*", r"<i>\1</i>", s)
         return re.sub(r"`([^`]+)`", r"<code>\1</code>", s)
@@ -167,7 +193,8 @@ def markdown_to_html(md: str, title: str) -> str:
 
 
 def write_report(out: Path, doc: dict | None = None) -> tuple[Path, Path]:
-    """Write ``out/report.md`` and ``out/report.html`` (and their figures) from
+    """Write ``out/report.md`` (images under ``out/img``) and the self-contained
+    ``out/report.html`` (images embedded) from
     ``out/results.json`` (or ``doc``).  Returns both paths."""
     out = Path(out)
     doc = doc if doc is not None else json.loads((out / "results.json").read_text())
@@ -184,7 +211,8 @@ def write_report(out: Path, doc: dict | None = None) -> tuple[Path, Path]:
     fig = emergent_figure(out / "img" / "emergent.png", doc, out)
     if fig:
         figures["emergent"] = fig
+    compact_images(out / "img")
     md = build_markdown(doc, figures)
     (out / "report.md").write_text(md)
-    (out / "report.html").write_text(markdown_to_html(md, "kgarment: reproduction of the paper"))
+    (out / "report.html").write_text(markdown_to_html(md, "kgarment: reproduction of the paper", base=out))
     return out / "report.md", out / "report.html"

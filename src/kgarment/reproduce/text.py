@@ -155,9 +155,19 @@ def performance_rows(doc: dict) -> list[str]:
                    "Newton its / state / iteration", "iterations with unconverged states"], rows)
     shirt = [e for e in doc["experiments"].values() if e["group"] in ("shirt", "long_sleeve")]
     if shirt:
+        by_n: dict[int, list] = {}
+        for e in shirt:
+            by_n.setdefault(len(e["motions"]), []).append(e)
+        parts = []
+        for n, es in sorted(by_n.items()):
+            sec = sorted(e["run"]["seconds_per_iteration"] for e in es)
+            span = f"{sec[0]:.1f}" if len(sec) == 1 else f"{sec[0]:.1f} to {sec[-1]:.1f}"
+            faces = "/".join(sorted({str(e["faces"]) for e in es}))
+            parts.append(f"{n} motion(s): {span} s per iteration ({len(es)} run(s), {faces} faces)")
         out += ["Growth with the number of motions (shirt garments; each motion adds two states, ON and OFF): "
-                + "; ".join(f"{len(e['motions'])} motion(s) {e['run']['seconds_per_iteration']:.1f} s per iteration"
-                            f" ({e['faces']} faces)" for e in shirt) + ".", ""]
+                + "; ".join(parts) + ". Time per iteration grows with the states and with how hard they "
+                "are: the five-motion long sleeve has more faces, and its states converge less easily (last "
+                "column).", ""]
     bench = ROOT / "benchmarks" / "results.json"
     if bench.is_file():
         data = json.loads(bench.read_text())
