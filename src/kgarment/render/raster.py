@@ -88,10 +88,11 @@ def project(layers: list[Layer], view: str):
 
 
 def render_png(layers: list[Layer], path, views=STANDARD_VIEWS, height_px: int = 720,
-               title: str | None = None, labels=None, colorbar=None) -> Path:
+               title: str | None = None, labels=None, colorbar=None, legend=None) -> Path:
     """Draw ``layers`` from each of ``views`` side by side into one PNG; returns the path.
 
-    colorbar : optional (matplotlib colormap name, vmin, vmax, label) drawn at the right.
+    colorbar : optional (matplotlib colormap name, vmin, vmax, label) drawn at the right;
+    legend : optional [(label, RGB(A) colour)] drawn at the right instead.
     """
     import matplotlib
 
@@ -111,7 +112,7 @@ def render_png(layers: list[Layer], path, views=STANDARD_VIEWS, height_px: int =
     aspect = (span[0] + 2 * pad) / (span[1] + 2 * pad)
     dpi = 100
     panel_h = height_px / dpi
-    fig_w = panel_h * aspect * len(views) + (1.0 if colorbar else 0.0)
+    fig_w = panel_h * aspect * len(views) + (1.0 if colorbar or legend else 0.0)
     fig, axes = plt.subplots(1, len(views), figsize=(fig_w, panel_h + (0.4 if title else 0)), dpi=dpi)
     axes = np.atleast_1d(axes)
     for ax, (polys, cols), view, i in zip(axes, projected, views, range(len(views))):
@@ -128,6 +129,12 @@ def render_png(layers: list[Layer], path, views=STANDARD_VIEWS, height_px: int =
         cmap, vmin, vmax, label = colorbar
         sm = plt.cm.ScalarMappable(cmap=cmap, norm=matplotlib.colors.Normalize(vmin, vmax))
         fig.colorbar(sm, ax=list(axes), fraction=0.02, pad=0.01, label=label)
+    elif legend:
+        from matplotlib.patches import Patch
+
+        fig.subplots_adjust(left=0, right=1 - 1.0 / fig_w, bottom=0, top=0.93 if title else 0.97, wspace=0)
+        fig.legend(handles=[Patch(facecolor=c, edgecolor="0.5", label=lab) for lab, c in legend],
+                   loc="center right", fontsize=8, frameon=False)
     else:
         fig.subplots_adjust(left=0, right=1, bottom=0, top=0.93 if title else 0.97, wspace=0)
     fig.savefig(path, dpi=dpi, facecolor="white")

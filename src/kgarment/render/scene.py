@@ -13,6 +13,7 @@ CLOTH = (0.25, 0.47, 0.85, 1.0)
 ATTACHED = (0.92, 0.35, 0.12, 1.0)
 CLUTCH_ON = (0.95, 0.78, 0.10, 1.0)
 CLUTCH_OFF = (0.55, 0.50, 0.35, 1.0)
+DESIGN_LEGEND = {0.0: "plain cloth", 1.0: "reinforced"}  # ``categories`` for design renders
 
 
 def face_colors(values: np.ndarray, cmap: str = "viridis", vmin=None, vmax=None) -> tuple[np.ndarray, float, float]:
@@ -29,13 +30,15 @@ def face_colors(values: np.ndarray, cmap: str = "viridis", vmin=None, vmax=None)
 def render_scene(path, body_vertices, body_faces, garment_vertices=None, garment_faces=None,
                  attached=None, face_values=None, clutches=(), clutch_activation=None,
                  views=STANDARD_VIEWS, title=None, cmap="viridis", value_label="",
-                 vmin=None, vmax=None, height_px=600) -> Path:
+                 vmin=None, vmax=None, height_px=600, categories=None) -> Path:
     """Render body (nb, 3)/(mb, 3), garment (n, 3)/(m, 3) and clutches to a PNG.
 
     attached : (m,) bool faces drawn in the attachment colour;
     face_values : (m,) per-face values drawn with ``cmap`` (e.g. energy density, J/m^2);
     clutches : sequence of (vertices (nc, 3), faces (mc, 3)) in the same pose;
-    clutch_activation : (K,) activations in [0, 1] (ON colour at 1, OFF at 0).
+    clutch_activation : (K,) activations in [0, 1] (ON colour at 1, OFF at 0);
+    categories : {value: label} -- face_values take only these values: a legend of their
+    colours (and the clutches') replaces the colour bar (designs: plain / reinforced).
     """
     layers = [Layer(np.asarray(body_vertices), np.asarray(body_faces), SKIN, cull=True)]
     colorbar = None
@@ -50,8 +53,16 @@ def render_scene(path, body_vertices, body_faces, garment_vertices=None, garment
             col[np.asarray(attached, bool)] = ATTACHED
         layers.append(Layer(np.asarray(garment_vertices), np.asarray(garment_faces), col,
                             depth_bias=0.004, offset=0.003))
+    legend = None
+    if categories and colorbar is not None:
+        vals = np.array(list(categories), dtype=float)
+        cols, _, _ = face_colors(vals, cmap, colorbar[1], colorbar[2])
+        legend = [(label, tuple(c)) for label, c in zip(categories.values(), cols)]
+        if len(clutches):
+            legend.append(("clutch", tuple(CLUTCH_ON) if clutch_activation is None else tuple(CLUTCH_OFF)))
+        colorbar = None
     for k, (cv, cf) in enumerate(clutches):
         g = 1.0 if clutch_activation is None else float(clutch_activation[k])
         c = g * np.array(CLUTCH_ON) + (1 - g) * np.array(CLUTCH_OFF)
         layers.append(Layer(np.asarray(cv), np.asarray(cf), c, depth_bias=0.008, offset=0.005))
-    return render_png(layers, path, views=views, title=title, colorbar=colorbar, height_px=height_px)
+    return render_png(layers, path, views=views, title=title, colorbar=colorbar, height_px=height_px, legend=legend)

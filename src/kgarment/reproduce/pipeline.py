@@ -36,7 +36,7 @@ log = logging.getLogger(__name__)
 
 
 def _render_design(path: Path, ev: Evaluator, design: np.ndarray, title: str) -> str:
-    from kgarment.render import render_scene
+    from kgarment.render import DESIGN_LEGEND, render_scene
 
     g = ev.garment
     bv, bf = ev.body.rest_vertices, ev.body.faces
@@ -45,7 +45,7 @@ def _render_design(path: Path, ev: Evaluator, design: np.ndarray, title: str) ->
     bf = bf[inside[bf].all(axis=1)]
     render_scene(path, bv, bf, g.rest_vertices, g.faces,
                  clutches=[(c.vertices, c.faces) for c in ev.strips], face_values=(design > 0.5).astype(float),
-                 cmap="Blues", vmin=-0.3, vmax=1.2, value_label="reinforced", title=title, height_px=260)
+                 cmap="Blues", vmin=-0.3, vmax=1.2, value_label="reinforced", categories=DESIGN_LEGEND, title=title, height_px=260)
     return path.name
 
 
