@@ -33,13 +33,17 @@ log = logging.getLogger(__name__)
 # The next iteration starts each state from this iteration's solution of it, converged or
 # not, unless its scaled residual exceeds this (then from its last accepted one).  Newton
 # descends monotonically, so an unconverged solve ends below its start in energy and
-# usually closer to the equilibrium: the next solve picks up where it stopped.  Measured
-# at preview resolution (sub 0, ER 3%) against restarting unconverged states from their
-# last converged equilibrium: arms raise 41 -> 3 iterations with an unconverged state,
-# 12,594 -> 8,649 Newton iterations, converged in 78 instead of stopping at 120; arm
-# flexion 9 -> 9, 9,934 -> 7,724 Newton iterations, best objective 0.508 -> 0.514.  A
-# solve that ended far from equilibrium (a residual of order 1: forces that would stretch
-# an edge by its own length) is not a start worth keeping.
+# usually closer to the equilibrium: the next solve picks up where it stopped, instead of
+# repeating the same failing path from an ever older start.  Measured at preview
+# resolution (sub 0, ER 3%) against restarting from the last converged equilibrium: arms
+# raise 41 -> 3 iterations with an unconverged state and 12,594 -> 8,649 Newton
+# iterations (the run met the convergence test at 78 instead of stopping at 120); arm
+# flexion 9 -> 9 and 9,934 -> 7,724.  The best objective at the target area was lower in
+# both of these single runs (0.29 -> 0.20 and 0.34 -> 0.29; BESO trajectories diverge
+# after the first different iteration, and the shorter runs had fewer iterations at the
+# target to choose from), so this is a robustness and speed measure, not a quality one.
+# A solve that ended far from equilibrium (a residual of order 1: forces that would
+# stretch an edge by its own length) is not a start worth keeping.
 WARM_MAX_RESIDUAL = 1.0
 
 
