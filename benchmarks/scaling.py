@@ -31,7 +31,6 @@ def best_of(fn, repeat: int) -> float:
 
 def main() -> None:
     import torch
-
     from solver import designs, save_json, setup
 
     from kgarment.sim import SolverOptions
@@ -54,14 +53,14 @@ def main() -> None:
         prob = prepare_state(model, d0, states[0], SolverOptions())
         x = torch.as_tensor(prob.initial_positions())
         prob.evaluate(x, order=2, exact=True)  # compile / warm the caches
-        t_eval = best_of(lambda: prob.evaluate(x, order=2, exact=True), args.repeat)
+        t_eval = best_of(lambda p=prob, x=x: p.evaluate(x, order=2, exact=True), args.repeat)
         _, _, H = prob.evaluate(x, order=2)
         H = H.copy()
         H[model.pattern.diag_pos] += 1e-2 * prob.dof_stiffness + 1e-6 * model.preset.cloth_stiffness
         chol = SparseCholesky(model.pattern)
-        t_fact = best_of(lambda: chol.factorize(H), args.repeat)
+        t_fact = best_of(lambda c=chol, h=H: c.factorize(h), args.repeat)
         rhs = np.ones(model.pattern.n_dof)
-        t_solve = best_of(lambda: chol.solve(rhs), args.repeat)
+        t_solve = best_of(lambda c=chol, b=rhs: c.solve(b), args.repeat)
         nnz_l = chol._factor.L().nnz if chol.backend == "cholmod" else float("nan")
         rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
         row = {"faces": g.n_faces, "unknowns": model.pattern.n_dof, "hessian_nnz": model.pattern.nnz,

@@ -86,7 +86,14 @@ def open_run(problem, run, *, resume: bool = False, force: bool = False, device:
     from kgarment.clutch import save_clutches
     from kgarment.design.loop import initial_state
     from kgarment.design.run import load_checkpoint, prepare_run_folder
-    from kgarment.problem import build_body, build_clutches, build_garment, clutch_specs, load_problem, problem_to_dict
+    from kgarment.problem import (
+        build_body,
+        build_clutches,
+        build_garment,
+        clutch_specs,
+        load_problem,
+        problem_to_dict,
+    )
 
     run = prepare_run_folder(run, force=force, resume=resume)
     if resume:
@@ -120,8 +127,9 @@ def finish(dr: DesignRun, progress: Callable[[dict], None] | None = None) -> Des
     return dr
 
 
-def design_equilibria(setup, design: np.ndarray, reference: Callable[[], list]) -> list:
-    """Equilibria of ``design`` (m,) in every state of ``setup`` (a ``DesignSetup``).
+def design_equilibria(setup, design: np.ndarray, reference: Callable[[], list], states=None) -> list:
+    """Equilibria of ``design`` (m,) in ``states`` (SimState list; default every state of
+    ``setup``, a ``DesignSetup``); ``reference()`` returns results aligned with them.
 
     Solved from the skin-tight start (like a design run's first iteration); states that do
     not converge are retried from ``reference()``'s equilibria (the fully reinforced
@@ -131,7 +139,7 @@ def design_equilibria(setup, design: np.ndarray, reference: Callable[[], list]) 
     """
     from kgarment.sim import solve_states
 
-    states = [s for _, s in setup.states()]
+    states = [s for _, s in setup.states()] if states is None else list(states)
     cold = solve_states(setup.model, design, states, options=setup.solver)
     bad = [i for i, r in enumerate(cold) if not r.converged]
     if not bad:

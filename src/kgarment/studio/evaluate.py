@@ -1,7 +1,8 @@
 """Simulate a design from the studio: equilibria and rho per motion and state.
 
 The same computation as :func:`kgarment.cli_design.evaluate_design` (solve the fully
-reinforced garment, then the design warm-started from it, and compare stored energies
+reinforced garment and the design, from the skin-tight start and where that fails from
+the full garment's equilibrium: ``design.driver.design_equilibria``; compare stored energies
 per method.md section 7), but on the studio's own garment (its painted attachments) and
 clutches, one state at a time so the page can show progress and a stop request is
 honoured between states; it also keeps the equilibria for display.
@@ -64,7 +65,7 @@ def evaluate(problem, body, garment, strips, design: np.ndarray, motions=None, *
     when the garment, clutches and solver settings are the same. report(text) is called
     before each solve; cancelled() is checked between solves (raises Cancelled).
     """
-    from kgarment.design.driver import build_setup
+    from kgarment.design.driver import build_setup, design_equilibria
     from kgarment.design.metrics import Stored, relative_energy_density
     from kgarment.sim import solve_states
 
@@ -98,7 +99,7 @@ def evaluate(problem, body, garment, strips, design: np.ndarray, motions=None, *
             raise Cancelled()
         if report:
             report(f"{label}: design, {key[0]} {key[1]} ({2 * k + 2}/{total})")
-        mine = solve_states(setup.model, values, [s], warm_start=[full.x], options=setup.solver)[0]
+        mine = design_equilibria(setup, values, lambda f=full: [f], states=[s])[0]
         sf, sd = Stored.of(full, clutched), Stored.of(mine, clutched)
         ev.rows.append({"motion": key[0], "state": key[1],
                         "rho": relative_energy_density(values, setup.areas, sd, sf, setup.clutch_area()),
