@@ -114,7 +114,7 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
                     "Emergent properties", "Performance", "Compared with the paper"):
         assert f"## {heading}" in md and heading in page
     # the HTML is self-contained (every image embedded); the Markdown links existing files
-    srcs = re.findall(r'<img src="([^"]+)"', page)
+    srcs = re.findall(r'<img[^>]*\bsrc="([^"]+)"', page)
     assert srcs and all(s.startswith("data:image/png;base64,") for s in srcs)
     links = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
     assert len(links) == len(srcs) and all((rep / s).is_file() for s in links)

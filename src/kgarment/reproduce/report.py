@@ -144,52 +144,32 @@ def _data_uri(path: Path) -> str:
 
 
 def markdown_to_html(md: str, title: str, base: Path | None = None) -> str:
-    """A small, dependency-free converter for the subset of Markdown the report uses.
+    """The report's Markdown as an HTML page (Python-Markdown with its tables extension).
     With ``base``, images found under it are embedded (data URIs): one self-contained file."""
     import re
 
-    out, table = [], []
+    import markdown
 
-    def image(m) -> str:
-        src = m.group(2)
+    lines = md.splitlines()
+    # GitHub-style Markdown starts a list right after a paragraph line; Python-Markdown
+    # wants a blank line first
+    fixed = [ln for i, line in enumerate(lines)
+             for ln in (([""] if line.startswith("- ") and i and lines[i - 1].strip()
+                         and not lines[i - 1].startswith("- ") else []) + [line])]
+    body = markdown.markdown("\n".join(fixed), extensions=["tables"], output_format="html")
+
+    def embed(m) -> str:
+        src = html.unescape(m.group(1))
         if base is not None and (Path(base) / src).is_file():
-            src = _data_uri(Path(base) / src)
-        return f'<img src="{src}" alt="{m.group(1)}">'
+            return f'src="{_data_uri(Path(base) / src)}"'
+        return m.group(0)
 
-    def inline(s: str) -> str:
-        s = html.escape(s, quote=False)
-        s = re.sub(r"!\[([^\]]*)\]\(([^)]+)\)", image, s)
-        s = re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", s)
-        s = re.sub(r"\*([^*]+)\*", r"<i>\1</i>", s)
-        return re.sub(r"`([^`]+)`", r"<code>\1</code>", s)
-
-    def flush():
-        if table:
-            rows = [r for r in table if not set(r.replace("|", "").strip()) <= {"-"}]
-            cells = [[c.strip() for c in r.strip().strip("|").split("|")] for r in rows]
-            out.append("<table><tr>" + "".join(f"<th>{inline(c)}</th>" for c in cells[0]) + "</tr>")
-            out.extend("<tr>" + "".join(f"<td>{inline(c)}</td>" for c in r) + "</tr>" for r in cells[1:])
-            out.append("</table>")
-            table.clear()
-
-    for line in md.splitlines():
-        if line.startswith("|"):
-            table.append(line)
-            continue
-        flush()
-        if line.startswith("#"):
-            level = len(line) - len(line.lstrip("#"))
-            out.append(f"<h{level}>{inline(line[level:].strip())}</h{level}>")
-        elif line.startswith("- "):
-            out.append(f"<ul><li>{inline(line[2:])}</li></ul>")
-        elif line.strip():
-            out.append(f"<p>{inline(line)}</p>")
-    flush()
+    body = re.sub(r'src="([^"]+)"', embed, body)
     style = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;line-height:1.4}"
              "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #ccc;padding:2px 6px;"
              "font-size:90%}img{max-width:32%;vertical-align:top}")
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{style}</style></head><body>\n" + "\n".join(out) + "\n</body></html>\n")
+            f"<style>{style}</style></head><body>\n{body}\n</body></html>\n")
 
 
 def write_report(out: Path, doc: dict | None = None) -> tuple[Path, Path]:
