@@ -171,11 +171,21 @@ def performance_rows(doc: dict) -> list[str]:
     bench = ROOT / "benchmarks" / "results.json"
     if bench.is_file():
         data = json.loads(bench.read_text())
-        out += ["Benchmarks (`benchmarks/results.json`, written by `benchmarks/solver.py` and `benchmarks/design.py` "
-                "with `--json`):", ""]
+        out += ["Benchmarks (`benchmarks/results.json`, written by the scripts under `benchmarks/` with "
+                "`--json`; `benchmarks/README.md` explains them): seconds (`_s`), milliseconds (`_ms`), "
+                "megabytes (`_mb`).", ""]
         for name, entries in data.items():
-            for key, val in entries.items():
-                out.append(f"- {name} {key}: " + ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}"
-                                                          for k, v in val.items()))
-        out.append("")
+            cols = sorted({k for val in entries.values() for k in val if not isinstance(val[k], dict)})
+            rows = [[key, *(_cell(val.get(k)) for k in cols)] for key, val in entries.items()]
+            out += [f"**{name}**", ""] + md_table(["", *[c.replace("_", " ") for c in cols]], rows) + [""]
     return out
+
+
+def _cell(v) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.3g}" if abs(v) < 1e4 else f"{v:,.0f}"
+    if isinstance(v, int) and not isinstance(v, bool):
+        return f"{v:,}"
+    return str(v)
