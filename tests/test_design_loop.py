@@ -86,3 +86,27 @@ def test_protected_faces(anny_body):
     near = protected_faces(g, strips, False, 0.015)
     anchors = strips[0].bind_face[strips[0].anchors]
     assert near[anchors].all() and near.mean() < 0.2
+
+
+def test_activation_continuation_reaches_the_on_equilibrium(anny_body):
+    """Switching the clutches on in steps ends at an equilibrium of the ON state itself."""
+    import dataclasses
+
+    import torch
+
+    from kgarment.design.driver import CONTINUATION, activation_continuation, build_setup
+    from kgarment.problem import GarmentSpec, Problem, build_clutches, build_garment
+    from kgarment.sim.solve import prepare_state
+
+    p = Problem(motions=("arm_flexion.right",), garment=GarmentSpec("arm_sleeve.right", subdivision=0))
+    g = build_garment(p, anny_body)
+    setup = build_setup(p, anny_body, g, build_clutches(p, anny_body, g))
+    setup = dataclasses.replace(setup, solver=dataclasses.replace(setup.solver, workers=1))
+    design = np.where(np.arange(g.n_faces) % 3 == 0, 1.0, setup.model.preset.x_min)
+    on = next(s for k, s in setup.states() if k[1] == "on")
+    r = activation_continuation(setup, design, on)
+    assert r.name == on.name and r.converged
+    assert r.convergence.iterations >= len(CONTINUATION)
+    prob = prepare_state(setup.model, design, on, setup.solver)  # checked independently of the solver
+    _, grad, _ = prob.evaluate(torch.as_tensor(r.x), order=1)
+    assert prob.residual(grad) <= setup.solver.tol
