@@ -92,3 +92,19 @@ def test_torch_path_is_used_when_disabled(torch_only):
     x, args = _triangles(50)
     e, _, H = membrane(x, *args, order=2, projection="none")
     assert torch.isfinite(H).all() and e.shape == (50,)
+
+
+def test_degenerate_triangle_gives_non_finite_values_not_an_exception():
+    """A triangle collapsed onto a line: inf / nan like the torch code (the solver then
+    names the state and term), not a ZeroDivisionError from the compiled loop."""
+    el = TriangleElements.from_mesh(np.array([[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0.0]]), np.array([[0, 1, 2]]))
+    T = torch.as_tensor
+    args = (T(el.tri), T(el.shape_grad), T(np.ones(1)), T(np.full(1, 1e5)), T(np.full(1, 1e5)), T(np.array([False])))
+    x = T(np.array([[0, 0, 0], [0.1, 0, 0], [0.05, 0, 0.0]]))
+    e, _, H = membrane(x, *args, order=2, projection="none")
+    kernels.ENABLED = False
+    try:
+        e0, _, _ = membrane(x, *args, order=2, projection="none")
+    finally:
+        kernels.ENABLED = True
+    assert not torch.isfinite(e).all() and not torch.isfinite(e0).all() and not torch.isfinite(H).all()

@@ -34,7 +34,9 @@ _R_EPS = 1e-9  # as membrane._R_EPS
 
 
 def _njit(fn):
-    return numba.njit(cache=True, nogil=True)(fn) if AVAILABLE else fn
+    # error_model="numpy": a degenerate element gives inf or nan (as in torch), which the
+    # solver reports by state and term, instead of raising ZeroDivisionError
+    return numba.njit(cache=True, nogil=True, error_model="numpy")(fn) if AVAILABLE else fn
 
 
 @_njit
