@@ -178,7 +178,8 @@ class SparseCholesky:
         if self.backend == "cholmod" and self.mode == "simplicial":
             self._factor.update_inplace(cols)
         elif self.backend == "cholmod":
-            self._factor.cholesky_inplace(self._H + sp.tril(cols @ cols.T).tocsc())
+            self._H = (self._H + sp.tril(cols @ cols.T)).tocsc()  # later updates add to this one
+            self._factor.cholesky_inplace(self._H)
         else:
             from scipy.sparse.linalg import splu
 
