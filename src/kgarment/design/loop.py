@@ -1,7 +1,8 @@
 """The BESO design loop over simulated states, with checkpoints after every iteration.
 
 One iteration: solve every state (motion x activation) for the current design, warm
-started from the previous iteration's solution of that state (see ``WARM_MAX_RESIDUAL``); turn element energy densities into
+started from the previous iteration's equilibria (the last converged one per state; see
+``WARM_MAX_RESIDUAL``); turn element energy densities into
 sensitivities; combine them by the objective; filter; average with the previous
 iteration; record metrics; update the design towards the next target area.
 
@@ -30,21 +31,19 @@ from kgarment.garment.topology import face_adjacency, triangle_areas
 
 log = logging.getLogger(__name__)
 
-# The next iteration starts each state from this iteration's solution of it, converged or
-# not, unless its scaled residual exceeds this (then from its last accepted one).  Newton
-# descends monotonically, so an unconverged solve ends below its start in energy and
-# usually closer to the equilibrium: the next solve picks up where it stopped, instead of
-# repeating the same failing path from an ever older start.  Measured at preview
-# resolution (sub 0, ER 3%) against restarting from the last converged equilibrium: arms
-# raise 41 -> 3 iterations with an unconverged state and 12,594 -> 8,649 Newton
-# iterations (the run met the convergence test at 78 instead of stopping at 120); arm
-# flexion 9 -> 9 and 9,934 -> 7,724.  The best objective at the target area was lower in
-# both of these single runs (0.29 -> 0.20 and 0.34 -> 0.29; BESO trajectories diverge
-# after the first different iteration, and the shorter runs had fewer iterations at the
-# target to choose from), so this is a robustness and speed measure, not a quality one.
-# A solve that ended far from equilibrium (a residual of order 1: forces that would
-# stretch an edge by its own length) is not a start worth keeping.
-WARM_MAX_RESIDUAL = 1.0
+# The next iteration starts a state from this iteration's solution of it when that
+# converged, or when it did not but its scaled residual is at most this; otherwise from the
+# state's last accepted solution.  0 (the default): converged solutions only.
+#
+# Measured (A/B at preview resolution, sub 0, ER 3%, whole `kgarment reproduce` runs): with
+# 1.0 (unconverged solutions accepted as starts; Newton descends monotonically, so they
+# are below their start in energy) the runs need fewer Newton iterations (arms raise
+# -31%, bend forward -13%, sleeve -18%; arms raise 41 -> 3 iterations with an
+# unconverged state) but the designs were no better and in places worse: evaluated rho ON
+# arms raise 1.91 -> 1.29, arm flexion 0.23 -> 0.17, sleeve 0.26 / 1.49 -> 0.24 / 1.44,
+# bend forward 1.85 -> 1.86, arms forward and arm extension identical.  Quality first:
+# off by default.
+WARM_MAX_RESIDUAL = 0.0
 
 
 @dataclass
