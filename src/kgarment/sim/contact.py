@@ -38,6 +38,8 @@ import numpy as np
 import torch
 from scipy.spatial import cKDTree
 
+from kgarment.sim import kernels
+
 N_SUPPORT = 6
 _K0 = 16
 
@@ -219,13 +221,9 @@ def imls(p: torch.Tensor, bv: torch.Tensor, bn: torch.Tensor, bh: torch.Tensor,
 
 def imls_fast(p: torch.Tensor, bv, bn, bh, index, valid, nearest, order: int = 0):
     """:func:`imls` through the compiled CPU kernel where it applies (``kernels``)."""
-    from kgarment.sim.membrane import _compiled, _np
-
-    if order == 0 or not _compiled(p):
+    if order == 0 or not kernels.applies(p):
         return imls(p, bv, bn, bh, index, valid, nearest, order=order)
-    from kgarment.sim.kernels import imls_order2
-
-    f, gf, hf = imls_order2(*(_np(a) for a in (p, bv, bn, bh, index, valid, nearest)), order)
+    f, gf, hf = kernels.imls_order2(*kernels.arrays(p, bv, bn, bh, index, valid, nearest), order)
     return torch.from_numpy(f), torch.from_numpy(gf), torch.from_numpy(hf) if order == 2 else None
 
 
@@ -241,12 +239,8 @@ def gather(bv, bn, bh, index, valid, nearest):
 def imls_value(p: torch.Tensor, pre) -> torch.Tensor:
     """f (P,) from :func:`gather`'s quantities, without forming the (P, K, 3) offsets:
     ``|p - v|^2 = |p|^2 - 2 p.v + |v|^2`` and ``n.(p - v) = n.p - n.v``."""
-    from kgarment.sim.membrane import _compiled, _np
-
-    if _compiled(p):
-        from kgarment.sim import kernels
-
-        return torch.from_numpy(kernels.imls_value(_np(p), *(_np(a) for a in pre)))
+    if kernels.applies(p):
+        return torch.from_numpy(kernels.imls_value(*kernels.arrays(p, *pre)))
     V, N, hinv, vv, nv, valid, v0, n0 = pre
     d2 = (p * p).sum(1)[:, None] - 2.0 * torch.einsum("pkc,pc->pk", V, p) + vv
     q = torch.clamp(1.0 - d2 * hinv, min=0.0) * valid

@@ -33,6 +33,18 @@ ENABLED = True  # set False to force the torch code (tests, comparisons)
 _R_EPS = 1e-9  # as membrane._R_EPS
 
 
+def applies(x) -> bool:
+    """Whether the kernels serve tensors like ``x`` (float64 on the CPU, numba present)."""
+    import torch
+
+    return AVAILABLE and ENABLED and x.device.type == "cpu" and x.dtype == torch.float64
+
+
+def arrays(*tensors) -> list[np.ndarray]:
+    """The tensors as contiguous numpy arrays (views where possible) for the kernels."""
+    return [np.ascontiguousarray(t.detach().numpy()) for t in tensors]
+
+
 def _njit(fn):
     # error_model="numpy": a degenerate element gives inf or nan (as in torch), which the
     # solver reports by state and term, instead of raising ZeroDivisionError

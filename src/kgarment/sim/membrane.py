@@ -44,6 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from kgarment.sim import kernels
+
 _R_EPS = 1e-9
 
 
@@ -203,17 +205,6 @@ def _psd2(s11, s22, s12):
     return out11, out22, out12
 
 
-def _compiled(x: torch.Tensor) -> bool:
-    """Whether the compiled CPU kernels (``kernels``) apply to tensors like x."""
-    from kgarment.sim import kernels
-
-    return kernels.AVAILABLE and kernels.ENABLED and x.device.type == "cpu" and x.dtype == torch.float64
-
-
-def _np(t: torch.Tensor) -> np.ndarray:
-    return np.ascontiguousarray(t.detach().numpy())
-
-
 def membrane(
     x: torch.Tensor,
     tri: torch.Tensor,
@@ -235,11 +226,9 @@ def membrane(
     [element vertex, coordinate] N or None; per-element Hessian (m, 9, 9) with row index
     ``3 * vertex + coordinate`` in N/m, or None.
     """
-    if order == 2 and projection in ("analytic", "none") and _compiled(x):
-        from kgarment.sim.kernels import membrane_order2
-
-        e, grad, H = membrane_order2(*(_np(a) for a in (x, tri, shape_grad, weight, mu, lam, relaxed)),
-                                     projection == "analytic")
+    if order == 2 and projection in ("analytic", "none") and kernels.applies(x):
+        e, grad, H = kernels.membrane_order2(*kernels.arrays(x, tri, shape_grad, weight, mu, lam, relaxed),
+                                             projection == "analytic")
         return torch.from_numpy(e), torch.from_numpy(grad), torch.from_numpy(H)
     X = x[tri]  # (m, 3, 3)
     F = torch.einsum("mai,maj->mij", X, shape_grad)  # (m, 3, 2)
