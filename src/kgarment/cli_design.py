@@ -128,7 +128,7 @@ def evaluate_design(problem, design: np.ndarray, device: str = "cpu") -> list[di
     keyed = setup.states()
     states = [s for _, s in keyed]
     full = solve_states(setup.model, np.ones(garment.n_faces), states, options=setup.solver)
-    mine = full if np.all(design > 0.5) else design_equilibria(setup, design, lambda: full)
+    mine = design_equilibria(setup, design, lambda: full)
     rows = []
     for (key, _), rf, rd in zip(keyed, full, mine):
         cl = setup.objective != "passive"

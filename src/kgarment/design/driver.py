@@ -19,6 +19,7 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
+
 @dataclass
 class DesignRun:
     """An open run: its folder, the problem and everything built from it.
@@ -131,16 +132,20 @@ def finish(dr: DesignRun, progress: Callable[[dict], None] | None = None) -> Des
 
 def design_equilibria(setup, design: np.ndarray, reference: Callable[[], list], states=None) -> list:
     """Equilibria of ``design`` (m,) in ``states`` (SimState list; default every state of
-    ``setup``, a ``DesignSetup``); ``reference()`` returns results aligned with them.
+    ``setup``, a ``DesignSetup``).
 
-    Solved from the skin-tight start (like a design run's first iteration); states that do
-    not converge are retried from ``reference()``'s equilibria (the fully reinforced
-    garment's, computed only when needed) and the converged, else lower-residual, solution
-    is kept; clutched states that still fail are solved by :func:`activation_continuation`.  The full garment's equilibrium alone is a poor start for a sparse design:
-    measured, 200 Newton iterations without converging where the cold start needed 76.
+    ``reference()`` is the fully reinforced garment's equilibria, computed only when needed:
+    a fully reinforced ``design`` returns them.  Otherwise solved from the skin-tight start
+    (like a design run's first iteration); states that do not converge are retried from the
+    reference equilibria and the converged, else lower-residual, solution is kept; clutched
+    states that still fail are solved by :func:`activation_continuation`.  The full
+    garment's equilibrium alone is a poor start for a sparse design: measured, 200 Newton
+    iterations without converging where the cold start needed 76.
     """
     from kgarment.sim import solve_states
 
+    if np.all(design > 0.5):
+        return list(reference())
     states = [s for _, s in setup.states()] if states is None else list(states)
     cold = solve_states(setup.model, design, states, options=setup.solver)
     bad = [i for i, r in enumerate(cold) if not r.converged]

@@ -2,8 +2,8 @@
 
 An :class:`Evaluator` builds a problem once (body, garment, clutches, simulation model),
 solves the fully reinforced garment in every state once (the reference of rho), and then
-evaluates any design of that garment (see :meth:`Evaluator._solve_design` for the starts).  Results are
-cached in a JSON file keyed by the problem and a hash of the design, so an interrupted
+evaluates any design of that garment (the starts: :func:`kgarment.design.driver.design_equilibria`).
+Results are cached in a JSON file keyed by the problem and a hash of the design, so an interrupted
 ``reproduce`` picks up where it stopped.
 """
 
@@ -72,23 +72,13 @@ class Evaluator:
     def n_faces(self) -> int:
         return self.garment.n_faces
 
-    def _solve(self, design: np.ndarray, warm=None):
-        from kgarment.sim import solve_states
-
-        return solve_states(self.setup.model, design, [s for _, s in self.keyed], warm_start=warm,
-                            options=self.setup.solver)
-
-    def _solve_design(self, design: np.ndarray):
-        """Equilibria of ``design``: cold start, retried from the full garment's equilibria
-        where that fails (:func:`kgarment.design.driver.design_equilibria`)."""
-        from kgarment.design.driver import design_equilibria
-
-        return design_equilibria(self.setup, design, self.full)
-
     def full(self):
         """The fully reinforced garment's equilibria (solved once)."""
         if self._full is None:
-            self._full = self._solve(np.ones(self.n_faces))
+            from kgarment.sim import solve_states
+
+            self._full = solve_states(self.setup.model, np.ones(self.n_faces), [s for _, s in self.keyed],
+                                      options=self.setup.solver)
         return self._full
 
     def evaluate(self, design: np.ndarray, label: str = "") -> dict:
@@ -98,7 +88,13 @@ class Evaluator:
         "islands_with_clutches": int, "clutch_ends_supported": int, "clutch_ends": int,
         "area": float (share of the rest area), "converged": bool, "label": str}.
         """
-        from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
+        from kgarment.design.driver import design_equilibria
+        from kgarment.design.metrics import (
+            Stored,
+            clutch_end_support,
+            islands,
+            relative_energy_density,
+        )
 
         design = np.asarray(design, dtype=np.float64)
         if len(design) != self.n_faces:
@@ -107,7 +103,7 @@ class Evaluator:
         if self.cache is not None and (hit := self.cache.get(key)) is not None:
             return hit
         full = self.full()
-        mine = full if np.all(design > 0.5) else self._solve_design(design)
+        mine = design_equilibria(self.setup, design, self.full)
         setup = self.setup
         rho: dict = {}
         for ((motion, state), _), rf, rd in zip(self.keyed, full, mine):

@@ -54,7 +54,6 @@ def _run_summary(outcome) -> dict:
     n = max(len(rows), 1)
     return {"folder": str(outcome.run), "iterations": len(rows), "seconds": outcome.seconds,
             "reported_iteration": outcome.iteration,
-
             "seconds_per_iteration": outcome.seconds / n,
             "newton_per_iteration": float(np.mean([r["newton_iterations"] for r in rows])) if rows else 0.0,
             "unconverged_iterations": int(sum(1 for r in rows if r["unconverged_states"]))}
