@@ -124,7 +124,7 @@ def evaluate_design(problem, design: np.ndarray, device: str = "cpu") -> list[di
     strips = build_clutches(problem, body, garment)
     from kgarment.design.driver import build_setup, design_equilibria
 
-    setup = build_setup(problem, body, garment, strips, device)
+    setup = build_setup(problem, body, garment, strips, device, evaluation=True)
     keyed = setup.states()
     states = [s for _, s in keyed]
     full = solve_states(setup.model, np.ones(garment.n_faces), states, options=setup.solver)

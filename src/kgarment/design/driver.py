@@ -19,6 +19,10 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
+# Solver tolerance of evaluations (rho of a finished design), tighter than the design
+# iterations' default 1e-3 (why: kgarment.problem.SolverSpec)
+EVALUATION_TOL = 1e-4
+
 
 @dataclass
 class DesignRun:
@@ -50,8 +54,11 @@ def run_status(run) -> str:
     return "finished" if done and (run / "final" / "design.npz").is_file() else "unfinished"
 
 
-def build_setup(problem, body, garment, strips, device: str = "cpu"):
-    """The design loop's precomputed setup for a problem (model, motions, filter, ...)."""
+def build_setup(problem, body, garment, strips, device: str = "cpu", evaluation: bool = False):
+    """The design loop's precomputed setup for a problem (model, motions, filter, ...).
+
+    ``evaluation``: the setup measures designs rather than iterating on one; it solves to
+    ``min([solver] tol, EVALUATION_TOL)`` (see ``kgarment.problem.SolverSpec``)."""
     from kgarment.design import BesoParams
     from kgarment.design.loop import DesignSetup
     from kgarment.sim import SolverOptions, build_model
@@ -63,7 +70,8 @@ def build_setup(problem, body, garment, strips, device: str = "cpu"):
     use_clutches = strips if d.objective != "passive" else []
     model = build_model(garment.rest_vertices, garment.faces, use_clutches, preset=problem.solver.preset)
     s = problem.solver
-    opts = SolverOptions(method=s.method, tol=s.tol, max_iter=s.max_iter, device=device,
+    tol = min(s.tol, EVALUATION_TOL) if evaluation else s.tol
+    opts = SolverOptions(method=s.method, tol=tol, max_iter=s.max_iter, device=device,
                          workers=s.workers or min(os.cpu_count() or 1, 8))
     return DesignSetup(model, sim_motions(body, garment), d.objective, params, opts,
                        protected=protected_faces(garment, use_clutches, d.protect_attachments, d.protect_clutch_margin))

@@ -60,7 +60,7 @@ class Evaluator:
         self.body = build_body(self.problem)
         self.garment = build_garment(self.problem, self.body)
         self.strips = build_clutches(self.problem, self.body, self.garment)
-        self.setup = build_setup(self.problem, self.body, self.garment, self.strips, device)
+        self.setup = build_setup(self.problem, self.body, self.garment, self.strips, device, evaluation=True)
         self.keyed = self.setup.states()
         self._full = None
 

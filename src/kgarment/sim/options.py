@@ -13,6 +13,10 @@ default ``tol = 1e-5`` therefore gives ~1e-6 relative energy accuracy for strain
 more (measured on the three-motion shirt: 5e-7 at residual 5e-4), and energy densities
 accurate to ~1e-5.  Tighter is possible but slow: slack / taut transitions of wrinkled
 triangles (the relaxed energy is only C1 at l_max = 1) make the last decades linear.
+Equilibria are not unique to better than about 1% in per-face energy density: solves
+converged to 1e-5 with different solver settings land up to 2.4% apart (a membrane without
+bending on a frictionless body has many nearly equal equilibria; ``benchmarks/accuracy.py``),
+so design iterations use 1e-3 (``kgarment.problem.SolverSpec``).
 A single cloth-based force scale (``Y_cloth t_cloth L``) would demand displacements of
 1e-11 m inside the 1000x stiffer reinforced cloth of the ``paper`` preset -- below what
 the piecewise (slack / taut) energy lets any solver reach -- and add no accuracy.
@@ -47,6 +51,7 @@ class SolverOptions:
     small enough that OpenMP synchronisation costs more than it gains, badly so on a
     loaded machine (50x measured on 2 busy cores), hence 1;  workers : processes solving
     states in parallel (``parallel``; e.g. 2 on 2 cores; 1 = in this process);  use_cholmod : prefer CHOLMOD over splu;
+    factorization : CHOLMOD's "simplicial" LDL' or "supernodal" LL' (``assembly.SparseCholesky``);
     armijo, max_backtracks : line search;  max_step : largest nodal move per Newton step,
     in mean edge lengths;  damping_min : smallest damping ``beta / (Y t)_cloth``;
     lbfgs_history : L-BFGS memory;  on_fail : "warn" (log + flag) | "raise"
@@ -68,6 +73,7 @@ class SolverOptions:
     threads: int | None = 1
     workers: int = 1
     use_cholmod: bool = True
+    factorization: str = "simplicial"
     armijo: float = 1e-4
     max_backtracks: int = 40
     max_step: float = 10.0
@@ -82,6 +88,8 @@ class SolverOptions:
             raise ValueError(f"unknown projection {self.projection!r}")
         if self.hessian not in ("shifted", "adaptive", "projected"):
             raise ValueError(f"unknown hessian strategy {self.hessian!r}")
+        if self.factorization not in ("simplicial", "supernodal"):
+            raise ValueError(f"factorization must be 'simplicial' or 'supernodal', not {self.factorization!r}")
         if self.on_fail not in ("warn", "raise"):
             raise ValueError(f"on_fail must be 'warn' or 'raise', not {self.on_fail!r}")
 

@@ -79,7 +79,7 @@ def evaluate(problem, body, garment, strips, design: np.ndarray, motions=None, *
     if not motions:
         raise KgarmentError("pick at least one motion to simulate")
     values = np.where(d, 1.0, X_MIN)
-    setup = build_setup(problem, body, posed_only(garment, motions), strips, device)
+    setup = build_setup(problem, body, posed_only(garment, motions), strips, device, evaluation=True)
     keyed = setup.states()
     clutched = setup.objective != "passive"
     cache_key = (_strips_key(strips), garment.attached.tobytes(), repr(problem.solver), problem.design.objective, device)
