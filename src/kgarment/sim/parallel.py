@@ -4,7 +4,10 @@ CHOLMOD (through scikit-sparse) holds the GIL while it factorises, so threads do
 overlap; states are independent, so they go to a pool of processes instead.  The pool is
 created on first use and kept for the rest of the session; each task carries the model,
 one state and its warm start (a few MB, milliseconds to pickle).  Results come back in
-the order of the states.  Workers are forked (POSIX): "spawn" would re-run an unguarded
+the order of the states.  Tasks are submitted longest first (by the Newton iterations the
+same state name took in the last call, a longest-processing-time schedule): with 6 states
+on 2 workers, a long state submitted last would leave one worker idle.  Each task is
+independent, so the order does not change any result.  Workers are forked (POSIX): "spawn" would re-run an unguarded
 calling script in every worker.  They run torch single-threaded, so no OpenMP state
 inherited from the parent is used, and ignore Ctrl-C (the main process handles it).
 """
@@ -17,6 +20,7 @@ import signal
 from concurrent.futures import ProcessPoolExecutor
 
 _POOLS: dict[int, ProcessPoolExecutor] = {}
+_LAST_ITERATIONS: dict[str, int] = {}  # state name -> Newton iterations in the last solve (scheduling only)
 
 
 def _pool(workers: int) -> ProcessPoolExecutor:
@@ -54,5 +58,9 @@ def solve_parallel(model, design, states, warm, options) -> list:
 
     sub = replace(options, workers=1)
     pool = _pool(options.workers)
-    futures = [pool.submit(_task, model, design, s, w, sub) for s, w in zip(states, warm)]
-    return [f.result() for f in futures]
+    order = sorted(range(len(states)), key=lambda i: -_LAST_ITERATIONS.get(states[i].name, 0))
+    futures = {i: pool.submit(_task, model, design, states[i], warm[i], sub) for i in order}
+    results = [futures[i].result() for i in range(len(states))]
+    for s, r in zip(states, results):
+        _LAST_ITERATIONS[s.name] = r.convergence.iterations
+    return results
