@@ -8,10 +8,14 @@ an iteration only recomputes values and scatters them with one ``index_add``.
 
 CHOLMOD (scikit-sparse) reads only the lower triangle: ``analyze`` runs once on the
 pattern, ``cholesky_inplace(H, beta)`` refactorises numerically each iteration (``beta``
-adds the damping ``beta * I``).  We use the simplicial LDL' factorisation with nested
-dissection ordering: Debian's CHOLMOD links the reference BLAS, with which the
-supernodal factorisation is slower (0.14 s against 0.10 s for a 16k-DOF garment); the
-simplicial factor also allows cheap rank updates (used for contact).  Without scikit-sparse we fall back to SciPy's ``splu``
+adds the damping ``beta * I``).  The default is the simplicial LDL' factorisation with
+nested dissection ordering, whose rank updates (contact anticipation) are cheap.  The
+supernodal LL' (``SolverOptions.factorization``; it needs an optimised BLAS such as
+Debian's OpenBLAS, with the reference BLAS it is slower) factorises faster at subdivision 1
+(70 against 88 ms, 20.7k unknowns, one thread) and applies small rank updates by the
+Woodbury identity; on warm solves of the shirt at subdivision 1 (two states, measured
+beside a design run) it was no faster overall: 0.46 against 0.44 s per Newton iteration
+at tol 1e-5, 17.4 against 16.5 s and 8.8 against 9.1 s at 1e-3, so it is not the default.  Without scikit-sparse we fall back to SciPy's ``splu``
 on the full symmetric matrix (much slower; logged once as a warning).
 """
 
@@ -129,9 +133,15 @@ def build_pattern(n_vertices: int, tri: np.ndarray, spring_index: np.ndarray) ->
 
 
 class SparseCholesky:
-    """Factorise ``H + beta I`` for a fixed pattern: CHOLMOD if available, else ``splu``."""
+    """Factorise ``H + beta I`` for a fixed pattern: CHOLMOD if available, else ``splu``.
+
+    mode : "simplicial" (LDL', rank updates in place) or "supernodal" (LL' through BLAS;
+    rank updates of up to ``WOODBURY_MAX`` columns in all are applied at solve time by the
+    Woodbury identity, more refactorise ``H + C C^T``).
+    """
 
     _warned = False
+    WOODBURY_MAX = 48
 
     def __init__(self, pattern: HessianPattern, use_cholmod: bool = True, mode: str = "simplicial",
                  ordering: str = "nesdis"):
@@ -140,6 +150,7 @@ class SparseCholesky:
         self._factor = None
         self._lu = None
         self._H = self._full = None
+        self._C = self._Z = self._S = None  # Woodbury: C (n, a) sparse, Z = A^-1 C, S = chol(I + C^T Z)
         self.mode = mode
         if self.backend == "cholmod":
             data = np.zeros(pattern.nnz)
@@ -154,6 +165,7 @@ class SparseCholesky:
         """data : (nnz,) lower-triangle values.  Raises NotPositiveDefinite."""
         H = self.pattern.matrix(data)
         self._H = H
+        self._C = self._Z = self._S = None
         if self.backend == "cholmod":
             try:
                 self._factor.cholesky_inplace(H, beta=beta)
@@ -174,11 +186,22 @@ class SparseCholesky:
 
     def add_outer(self, cols: sp.csc_matrix) -> None:
         """Turn the current factor of H into that of ``H + C C^T``; ``cols`` is the (3N, a)
-        sparse C (CHOLMOD rank-a update, needs the simplicial mode; splu refactorises)."""
+        sparse C (simplicial: CHOLMOD rank-a update; supernodal: Woodbury, or a
+        refactorisation beyond ``WOODBURY_MAX`` columns; splu refactorises)."""
         if self.backend == "cholmod" and self.mode == "simplicial":
             self._factor.update_inplace(cols)
         elif self.backend == "cholmod":
-            self._H = (self._H + sp.tril(cols @ cols.T)).tocsc()  # later updates add to this one
+            C = cols if self._C is None else sp.hstack([self._C, cols]).tocsc()
+            if C.shape[1] <= self.WOODBURY_MAX:
+                # (A + C C^T)^-1 = A^-1 - Z (I + C^T Z)^-1 Z^T with Z = A^-1 C: a few solves
+                # instead of a refactorisation; A + C C^T stays positive definite
+                Znew = self._factor(cols.toarray())
+                Z = Znew if self._Z is None else np.hstack([self._Z, Znew])
+                S = np.eye(C.shape[1]) + C.T @ Z
+                self._C, self._Z, self._S = C, Z, np.linalg.cholesky(0.5 * (S + S.T))
+                return
+            self._H = (self._H + sp.tril(C @ C.T)).tocsc()  # later updates add to this one
+            self._C = self._Z = self._S = None
             self._factor.cholesky_inplace(self._H)
         else:
             from scipy.sparse.linalg import splu
@@ -189,5 +212,9 @@ class SparseCholesky:
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """rhs : (3N,) -> (3N,)."""
         if self.backend == "cholmod":
-            return self._factor(rhs)
+            y = self._factor(rhs)
+            if self._C is not None:
+                w = np.linalg.solve(self._S.T, np.linalg.solve(self._S, self._C.T @ y))
+                y = y - self._Z @ w
+            return y
         return self._lu.solve(rhs)

@@ -141,7 +141,7 @@ def solve_states(model: SimModel, design: np.ndarray, states: Sequence[SimState]
 def _solve_all(model, design, states, warm, options) -> list[StateResult]:
     linsolver = None
     if options.method == "newton":
-        linsolver = SparseCholesky(model.pattern, use_cholmod=options.use_cholmod)
+        linsolver = SparseCholesky(model.pattern, use_cholmod=options.use_cholmod, mode=options.factorization)
     results = []
     for state, w in zip(states, warm):
         prob = prepare_state(model, design, state, options)
