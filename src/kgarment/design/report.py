@@ -35,7 +35,7 @@ def write_design_mesh(path, vertices, faces, design) -> Path:
 def finish_run(run: Path, setup, st, body, garment, strips) -> list[Path]:
     """Final design (NPZ, PLY, OBJ), progress plot, and renders of the final design
     coloured by energy density for each motion and state. Returns the written paths."""
-    from kgarment.render import DESIGN_LEGEND, render_scene
+    from kgarment.render import render_design, render_scene
     from kgarment.sim import solve_states
 
     final = run / "final"
@@ -46,10 +46,9 @@ def finish_run(run: Path, setup, st, body, garment, strips) -> list[Path]:
                     iteration=np.array(len(st.designs) - 1))
     paths.append(final / "design.npz")
     paths.append(write_design_mesh(final / "design.ply", garment.rest_vertices, garment.faces, design))
-    paths.append(render_scene(final / "design.png", body.rest_vertices, body.faces, garment.rest_vertices,
-                              garment.faces, clutches=[(c.vertices, c.faces) for c in strips],
-                              face_values=(design > 0.5).astype(float), cmap="Blues", vmin=-0.3, vmax=1.2,
-                              value_label="reinforced", categories=DESIGN_LEGEND, title=f"{garment.name}: final design"))
+    paths.append(render_design(final / "design.png", body.rest_vertices, body.faces, garment.rest_vertices,
+                               garment.faces, design, clutches=[(c.vertices, c.faces) for c in strips],
+                               title=f"{garment.name}: final design"))
     keyed = setup.states()
     states = [s for _, s in keyed]
     results = solve_states(setup.model, design, states, warm_start=[st.warm.get(s.name) for s in states],

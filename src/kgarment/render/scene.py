@@ -13,7 +13,7 @@ CLOTH = (0.25, 0.47, 0.85, 1.0)
 ATTACHED = (0.92, 0.35, 0.12, 1.0)
 CLUTCH_ON = (0.95, 0.78, 0.10, 1.0)
 CLUTCH_OFF = (0.55, 0.50, 0.35, 1.0)
-DESIGN_LEGEND = {0.0: "plain cloth", 1.0: "reinforced"}  # ``categories`` for design renders
+DESIGN_LEGEND = {0.0: "plain cloth", 1.0: "reinforced"}  # ``categories`` of :func:`render_design`
 
 
 def face_colors(values: np.ndarray, cmap: str = "viridis", vmin=None, vmax=None) -> tuple[np.ndarray, float, float]:
@@ -66,3 +66,13 @@ def render_scene(path, body_vertices, body_faces, garment_vertices=None, garment
         c = g * np.array(CLUTCH_ON) + (1 - g) * np.array(CLUTCH_OFF)
         layers.append(Layer(np.asarray(cv), np.asarray(cf), c, depth_bias=0.008, offset=0.005))
     return render_png(layers, path, views=views, title=title, colorbar=colorbar, height_px=height_px, legend=legend)
+
+
+def render_design(path, body_vertices, body_faces, garment_vertices, garment_faces, design,
+                  clutches=(), title=None, height_px=600) -> Path:
+    """Render a design: faces of ``design`` (m,) above 0.5 reinforced, with a plain /
+    reinforced / clutch legend; other arguments as :func:`render_scene`."""
+    return render_scene(path, body_vertices, body_faces, garment_vertices, garment_faces,
+                        face_values=(np.asarray(design) > 0.5).astype(float), clutches=clutches, cmap="Blues",
+                        vmin=-0.3, vmax=1.2, value_label="reinforced", categories=DESIGN_LEGEND, title=title,
+                        height_px=height_px)

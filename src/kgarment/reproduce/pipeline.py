@@ -36,16 +36,15 @@ log = logging.getLogger(__name__)
 
 
 def _render_design(path: Path, ev: Evaluator, design: np.ndarray, title: str) -> str:
-    from kgarment.render import DESIGN_LEGEND, render_scene
+    from kgarment.render import render_design
 
     g = ev.garment
     bv, bf = ev.body.rest_vertices, ev.body.faces
     lo, hi = g.rest_vertices.min(0) - 0.05, g.rest_vertices.max(0) + 0.05  # frame the garment, not the body
     inside = np.all((bv >= lo) & (bv <= hi), axis=1)
     bf = bf[inside[bf].all(axis=1)]
-    render_scene(path, bv, bf, g.rest_vertices, g.faces,
-                 clutches=[(c.vertices, c.faces) for c in ev.strips], face_values=(design > 0.5).astype(float),
-                 cmap="Blues", vmin=-0.3, vmax=1.2, value_label="reinforced", categories=DESIGN_LEGEND, title=title, height_px=260)
+    render_design(path, bv, bf, g.rest_vertices, g.faces, design, clutches=[(c.vertices, c.faces) for c in ev.strips],
+                  title=title, height_px=260)
     return path.name
 
 

@@ -177,11 +177,12 @@ def performance_rows(doc: dict) -> list[str]:
         for name, entries in data.items():
             cols = sorted({k for val in entries.values() for k in val if not isinstance(val[k], dict)})
             if len(cols) > 8:  # many figures of few cases (subdivision 0, 1): one row per figure
+                head = ["", *entries]
                 rows = [[c.replace("_", " "), *(_cell(val.get(c)) for val in entries.values())] for c in cols]
-                out += [f"**{name}**", ""] + md_table(["", *entries], rows) + [""]
-                continue
-            rows = [[key, *(_cell(val.get(k)) for k in cols)] for key, val in entries.items()]
-            out += [f"**{name}**", ""] + md_table(["", *[c.replace("_", " ") for c in cols]], rows) + [""]
+            else:
+                head = ["", *[c.replace("_", " ") for c in cols]]
+                rows = [[key, *(_cell(val.get(k)) for k in cols)] for key, val in entries.items()]
+            out += [f"**{name}**", ""] + md_table(head, rows) + [""]
     return out
 
 

@@ -150,7 +150,7 @@ class SparseCholesky:
         self._factor = None
         self._lu = None
         self._H = self._full = None
-        self._C = self._Z = self._S = None  # Woodbury: C (n, a) sparse, Z = A^-1 C, S = chol(I + C^T Z)
+        self._C = self._Z = self._S = None  # Woodbury: C (n, a) sparse, Z = A^-1 C, S = cho_factor(I + C^T Z)
         self.mode = mode
         if self.backend == "cholmod":
             data = np.zeros(pattern.nnz)
@@ -197,8 +197,10 @@ class SparseCholesky:
                 # instead of a refactorisation; A + C C^T stays positive definite
                 Znew = self._factor(cols.toarray())
                 Z = Znew if self._Z is None else np.hstack([self._Z, Znew])
-                S = np.eye(C.shape[1]) + C.T @ Z
-                self._C, self._Z, self._S = C, Z, np.linalg.cholesky(0.5 * (S + S.T))
+                from scipy.linalg import cho_factor
+
+                self._C, self._Z = C, Z
+                self._S = cho_factor(np.eye(C.shape[1]) + C.T @ Z, lower=True)
                 return
             self._H = (self._H + sp.tril(C @ C.T)).tocsc()  # later updates add to this one
             self._C = self._Z = self._S = None
@@ -214,7 +216,8 @@ class SparseCholesky:
         if self.backend == "cholmod":
             y = self._factor(rhs)
             if self._C is not None:
-                w = np.linalg.solve(self._S.T, np.linalg.solve(self._S, self._C.T @ y))
-                y = y - self._Z @ w
+                from scipy.linalg import cho_solve
+
+                y = y - self._Z @ cho_solve(self._S, self._C.T @ y)
             return y
         return self._lu.solve(rhs)
