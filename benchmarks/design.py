@@ -49,6 +49,8 @@ def run(sub: int, out: Path, max_iterations: int | None) -> dict:
     last = rows[-1]
     return {"subdivision": sub, "wall_s": wall, "iterations": len(rows), "peak_rss_mb": peak / 1024,
             "area": last["area"], "islands": last["islands"],
+            "newton_iterations": sum(r["newton_iterations"] for r in rows),
+            "unconverged_iterations": sum(1 for r in rows if r["unconverged_states"]),
             "rho": {k[4:-1]: v for k, v in last.items() if k.startswith("rho[")},
             "solver_s": sum(r["seconds"] for r in rows)}
 
@@ -68,7 +70,9 @@ def main() -> None:
         t = targets.get(sub)
         ratio = f" ({res['wall_s'] / t:.2f} x the {t / 60:.0f}-minute target)" if t else ""
         print(f"subdivision {sub}: {res['wall_s']:.0f} s{ratio}, {res['iterations']} iterations, "
-              f"peak RSS {res['peak_rss_mb']:.0f} MB, final area {100 * res['area']:.1f}%, islands {res['islands']}")
+              f"peak RSS {res['peak_rss_mb']:.0f} MB, final area {100 * res['area']:.1f}%, islands {res['islands']}, "
+              f"{res['newton_iterations']} Newton iterations ({res['unconverged_iterations']} iterations with an "
+              f"unconverged state)")
         for k, v in res["rho"].items():
             print(f"    rho {k:22s} {v:.3f}")
         figures[f"subdivision {sub}"] = {k: v for k, v in res.items() if k != "rho"}

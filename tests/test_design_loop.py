@@ -73,6 +73,35 @@ def test_resume_is_bit_identical(tmp_path):
     np.testing.assert_array_equal(whole.design, resumed.design)
 
 
+def test_evolution_tolerance_only_while_the_area_changes():
+    """Iterations 1 .. A* solve to the evolution tolerance, iteration 0 (the reference of rho)
+    and the iterations at A* (which decide convergence) to the design tolerance; the coarse
+    iterations' objectives are not judged; the design ends as with fine solves throughout."""
+    import dataclasses
+    import math
+
+    fine, _ = _sheet_setup(max_iterations=40)
+    fine.solver = dataclasses.replace(fine.solver, tol=1e-4)
+    ref = run_loop(fine, initial_state(fine))
+    setup, _ = _sheet_setup(max_iterations=40)
+    setup.solver = fine.solver
+    setup.evolution_solver = dataclasses.replace(fine.solver, tol=1e-2)
+    st = run_loop(setup, initial_state(setup))
+    tols = [r["solver_tol"] for r in st.metrics]
+    at_target = [r["target"] == setup.params.target_area for r in st.metrics]
+    assert tols[0] == 1e-4 and st.metrics[0]["target"] == 1.0
+    assert all(t == (1e-4 if a else 1e-2) for t, a in zip(tols[1:], at_target[1:]))
+    assert 0 < sum(at_target) < len(tols) - 1  # both phases happened
+    assert all(math.isnan(o) == (t == 1e-2) for o, t in zip(st.objectives, tols))
+    assert len(st.metrics) < 40 and len(ref.metrics) < 40  # both converged (not stopped at the maximum)
+    assert len(st.metrics) - at_target.index(True) >= 2 * setup.params.window  # judged on fine iterations only
+    coarse = [i for i, t in enumerate(tols) if t == 1e-2]
+    newton = lambda run: sum(run.metrics[i]["newton_iterations"] for i in coarse)  # noqa: E731
+    assert newton(st) < 0.5 * newton(ref)
+    diff = int((st.designs[-1] != ref.designs[-1]).sum())
+    assert diff <= 0.02 * len(st.design)
+
+
 def test_protected_faces(anny_body):
     from kgarment.design.driver import protected_faces
     from kgarment.clutch import build_clutch

@@ -38,6 +38,7 @@ def test_example_parses_and_round_trips(path, anny_body, tmp_path):
     ("[design]\nwindow = 2.5\n", "must be an integer"),
     ("[materials]\npreset = 'steel'\n", "preset = 'steel'; allowed: paper, reference"),
     ("[solver]\nmethod = 'cg'\n", "method = 'cg'; allowed: newton, lbfgs"),
+    ("[solver]\nevolution_tol = 2.0\n", "evolution_tol = 2.0 is outside"),
     ("[design]\nbudget = 0.2\n", "unknown field 'budget'"),
 ])
 def test_bad_design_sections(toml, message):

@@ -110,6 +110,13 @@ class SolverSpec:
     within 1% when both are evaluated at 1e-5, in 2.5x less time.  Evaluations
     (``kgarment evaluate``, ``kgarment reproduce``, the studio) solve to
     ``min(tol, EVALUATION_TOL)`` (1e-4).
+    evolution_tol : the tolerance while the BESO target area is still changing (iterations
+    1 until A* is reached; iteration 0, the reference of rho, and every iteration at A*,
+    whose objectives decide convergence, solve to ``tol``).  The ranking that moves the
+    design towards A* needs sensitivities, not digits (Amir & Sigmund 2011, "On reducing
+    computational effort in topology optimization: how accurate should the analysis
+    be?"); ``benchmarks/design.py`` measures what it costs and buys.  Set it equal to
+    ``tol`` to solve every iteration alike.
     workers : processes solving states in parallel; 0 = one per core, at most 8 (results do
     not depend on it).
     """
@@ -117,6 +124,7 @@ class SolverSpec:
     preset: str = "paper"
     method: str = "newton"
     tol: float = 1e-3
+    evolution_tol: float = 1e-2
     max_iter: int = 200
     workers: int = 0
 
@@ -264,7 +272,8 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
     if "preset" in mats:
         solver["preset"] = mats["preset"]
     solver = _section(SolverSpec, "solver", solver, {"preset": ("paper", "reference"), "method": ("newton", "lbfgs")},
-                      {"tol": (1e-14, 1.0), "max_iter": (1, 100000), "workers": (0, 256)})
+                      {"tol": (1e-14, 1.0), "evolution_tol": (1e-14, 1.0), "max_iter": (1, 100000),
+                       "workers": (0, 256)})
     return Problem(body, names, user, garment, clutches, design, solver, source)
 
 

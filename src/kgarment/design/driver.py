@@ -73,7 +73,9 @@ def build_setup(problem, body, garment, strips, device: str = "cpu", evaluation:
     tol = min(s.tol, EVALUATION_TOL) if evaluation else s.tol
     opts = SolverOptions(method=s.method, tol=tol, max_iter=s.max_iter, device=device,
                          workers=s.workers or min(os.cpu_count() or 1, 8))
+    evolution = dataclasses.replace(opts, tol=max(tol, s.evolution_tol))
     return DesignSetup(model, sim_motions(body, garment), d.objective, params, opts,
+                       evolution_solver=evolution,
                        protected=protected_faces(garment, use_clutches, d.protect_attachments, d.protect_clutch_margin))
 
 

@@ -52,7 +52,9 @@ class DesignSetup:
 
     model : kgarment.sim.SimModel; motions : {name: kgarment.sim.Motion};
     objective : "active" | "passive" | "compliance"; params : BesoParams;
-    solver : kgarment.sim.SolverOptions; protected : (m,) bool faces kept reinforced.
+    solver : kgarment.sim.SolverOptions; evolution_solver : the options while the target
+    area is still changing (None: ``solver``; see ``kgarment.problem.SolverSpec``);
+    protected : (m,) bool faces kept reinforced.
     """
 
     model: object
@@ -60,6 +62,7 @@ class DesignSetup:
     objective: str
     params: BesoParams
     solver: object
+    evolution_solver: object = None
     protected: np.ndarray | None = None
     filter_matrix: object = None
     areas: np.ndarray = field(default=None)
@@ -80,6 +83,13 @@ class DesignSetup:
         for c in m.clutches:
             a = np.asarray(c.anchors)
             self.end_faces.append((np.asarray(c.bind_face)[a[[0, 1, 2]]], np.asarray(c.bind_face)[a[[3, 4, 5]]]))
+
+    def options(self, st: LoopState):
+        """The solver options of iteration ``st``: ``evolution_solver`` from iteration 1 while
+        the target area differs from A*, ``solver`` otherwise."""
+        if self.evolution_solver is not None and evolving(self, st):
+            return self.evolution_solver
+        return self.solver
 
     @property
     def n_clutches(self) -> int:
@@ -118,6 +128,11 @@ class LoopState:
     done: bool = False
 
 
+def evolving(setup: DesignSetup, st: LoopState) -> bool:
+    """Iteration ``st`` is past the reference (0) and its target area is not yet A*."""
+    return st.iteration > 0 and st.target != setup.params.target_area
+
+
 def initial_state(setup: DesignSetup) -> LoopState:
     m = setup.model.n_faces
     return LoopState(0, np.ones(m), 1.0, None, {}, [], {}, {}, [], [])
@@ -131,7 +146,9 @@ def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
     keyed = setup.states()
     states = [s for _, s in keyed]
     warm = [st.warm.get(s.name) for s in states]
-    results = solve_states(setup.model, st.design, states, warm_start=warm, options=setup.solver)
+    opts = setup.options(st)
+    coarse = opts is not setup.solver
+    results = solve_states(setup.model, st.design, states, warm_start=warm, options=opts)
     bad = [r.name for r in results if not r.converged]
     factor = log_stiffness_derivative(st.design, setup.model.preset) / setup.model.preset.penal
     alpha, energy, stored = {}, {}, {}
@@ -162,7 +179,8 @@ def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
     if setup.protected is not None:
         filt = np.where(setup.protected, filt.max() + 1.0, filt)
     obj = objective_value(setup.objective, energy, st.reference, motions)
-    st.objectives.append(obj if not bad else float("nan"))  # NaN: no convergence judged on it
+    # NaN: no convergence judged on it (unconverged, or solved to the evolution tolerance)
+    st.objectives.append(obj if not (bad or coarse) else float("nan"))
     areas = setup.areas
     frac = float(areas[st.design > 0.5].sum() / areas.sum())
     rho = {f"{k[0]}:{k[1]}": relative_energy_density(st.design, areas, stored[k], st.reference_stored[k],
@@ -175,7 +193,7 @@ def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
         "islands_with_clutches": islands(setup.model.garment_faces, st.design, links=links, adjacency=setup.adjacency),
         "clutch_ends_supported": int(sum(a + b for a, b in ends)), "clutch_ends": 2 * len(ends),
         "unconverged_states": ";".join(bad), "seconds": 0.0,
-        "newton_iterations": int(sum(r.convergence.iterations for r in results)),
+        "newton_iterations": int(sum(r.convergence.iterations for r in results)), "solver_tol": opts.tol,
     }
     row.update({f"rho[{k}]": v for k, v in rho.items()})
     row.update({f"energy[{k[0]}:{k[1]}]": v for k, v in energy.items()})
