@@ -4,7 +4,7 @@ PY      ?= python3
 VENV    := .venv
 VPY     := $(VENV)/bin/python
 STAMP   := $(VENV)/.kgarment-installed
-DEB     := libsuitesparse-dev chromium chromium-driver
+DEB     := libsuitesparse-dev libopenblas0-serial chromium chromium-driver
 OUT     ?= runs/demo
 
 .PHONY: demo test setup deb bench clean

@@ -214,38 +214,28 @@ def test_worker_processes_give_the_same_results():
             assert np.array_equal(a.x, b.x) and a.energy == b.energy
 
 
-@pytest.mark.parametrize("mode,use_cholmod,woodbury_max", [("simplicial", True, 0), ("supernodal", True, 48),
-                                                           ("supernodal", True, 1), ("supernodal", True, 2),
-                                                           ("simplicial", False, 0)])
-def test_rank_updates_accumulate(mode, use_cholmod, woodbury_max):
-    """Two add_outer calls solve (H + C1 C1^T + C2 C2^T) x = b, in every factorisation mode
-    (checked against scipy's sparse LU on the assembled matrix): supernodal by the Woodbury
-    identity (48), by refactorising (1), and the first by Woodbury, the second by
-    refactorising (2).  The supernodal path used to drop the first update when a second
-    came (measured: 4x the Newton iterations)."""
-    import scipy.sparse as sp
-    from scipy.sparse.linalg import spsolve
+def _blas_thread_counts():
+    from threadpoolctl import threadpool_info
 
-    from kgarment.sim.assembly import SparseCholesky, build_pattern
+    return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
 
-    rng = np.random.default_rng(3)
-    tri = np.array([[0, 1, 2], [1, 3, 2], [2, 3, 4], [3, 5, 4]])
-    pat = build_pattern(6, tri, np.zeros((0, 4), np.int64))
-    low = sp.tril(sp.random(pat.n_dof, pat.n_dof, density=1.0, random_state=4)).tocsc()
-    data = np.asarray(low[pat.indices, np.repeat(np.arange(pat.n_dof), np.diff(pat.indptr))]).ravel()
-    data[pat.diag_pos] += 20.0  # diagonally dominant: positive definite
-    chol = SparseCholesky(pat, use_cholmod=use_cholmod, mode=mode)
-    chol.WOODBURY_MAX = woodbury_max
-    chol.factorize(data)
-    def vertex_columns(verts):  # one column per vertex, on its 3 unknowns (as contact anticipation adds)
-        rows = (3 * np.asarray(verts)[:, None] + np.arange(3)).ravel()
-        cols = np.repeat(np.arange(len(verts)), 3)
-        return sp.csc_matrix((rng.normal(size=len(rows)), (rows, cols)), shape=(pat.n_dof, len(verts)))
 
-    cs = [vertex_columns([0, 4]), vertex_columns([2, 4, 5])]
-    for c in cs:
-        chol.add_outer(c)
-    H = pat.matrix(data)
-    full = (H + H.T - sp.diags(H.diagonal()) + sum(c @ c.T for c in cs)).tocsc()
-    b = rng.normal(size=pat.n_dof)
-    assert np.allclose(chol.solve(b), spsolve(full, b), rtol=1e-9, atol=1e-12)
+def test_solves_run_blas_on_one_thread():
+    """Inside a solve and in the worker processes BLAS runs one thread (OpenBLAS's idle
+    threads spin and would take the other workers' cores); the caller's setting is
+    restored afterwards."""
+    from threadpoolctl import threadpool_limits
+
+    from kgarment.sim import parallel
+    from kgarment.sim.solve import blas_threads
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_thread_counts()
+        with blas_threads(1):
+            assert set(_blas_thread_counts()) == {1}
+        assert _blas_thread_counts() == before
+        with blas_threads(None):
+            assert _blas_thread_counts() == before
+    pool = parallel._pool(2)
+    counts = [pool.submit(_blas_thread_counts).result() for _ in range(4)]
+    assert all(set(c) == {1} for c in counts)

@@ -6,23 +6,38 @@ The pattern is the lower triangle (CSC, ``row >= col``) of the 3N x 3N Hessian, 
 precomputes, for each source of values, where each value lands in the CSC data array, so
 an iteration only recomputes values and scatters them with one ``index_add``.
 
-CHOLMOD (scikit-sparse) reads only the lower triangle: ``analyze`` runs once on the
-pattern, ``cholesky_inplace(H, beta)`` refactorises numerically each iteration (``beta``
-adds the damping ``beta * I``).  The default is the simplicial LDL' factorisation with
-nested dissection ordering, whose rank updates (contact anticipation) are cheap.  The
-supernodal LL' (``SolverOptions.factorization``; it needs an optimised BLAS such as
-Debian's OpenBLAS, with the reference BLAS it is slower) factorises faster at subdivision 1
-(70 against 88 ms, 20.7k unknowns, one thread) and applies small rank updates by the
-Woodbury identity; on warm solves of the shirt at subdivision 1 (two states, measured
-beside a design run) it was no faster overall: 0.46 against 0.44 s per Newton iteration
-at tol 1e-5, 17.4 against 16.5 s and 8.8 against 9.1 s at 1e-3, so it is not the default.  Without scikit-sparse we fall back to SciPy's ``splu``
-on the full symmetric matrix (much slower; logged once as a warning).
+Factorisations (``SolverOptions.factorization``; the lower-triangle CSC pattern is exactly
+the upper-triangle CSR matrix PARDISO reads, so no copy is made):
+
+* "pardiso" (Intel MKL PARDISO, ``kgarment.sim.pardiso``; what "auto" picks when the
+  ``mkl`` wheel is installed): symbolic analysis (METIS) once per pattern, a numerical
+  Cholesky per iteration that stops at the first non-positive pivot.  Rank updates (contact
+  anticipation) of up to ``WOODBURY_MAX["pardiso"]`` columns in all are applied at solve
+  time by the Woodbury identity (one multi-right-hand-side solve costs ~0.9 ms a column),
+  more refactorise ``H + C C^T`` (~18 ms at subdivision 1);
+* "simplicial" (CHOLMOD LDL', "auto" without MKL): rank updates in place, but an
+  indefinite matrix is only detected from the pivots once the whole factorisation is done;
+* "supernodal" (CHOLMOD LL' through BLAS; the Makefile installs Debian's serial OpenBLAS,
+  with the reference BLAS it is slower): stops at the first non-positive pivot, Woodbury
+  updates up to 48 columns.  CHOLMOD runs OpenMP regions here, which GNU OpenMP does not
+  survive across a fork (``kgarment.sim.parallel`` then starts its workers by forkserver);
+* "splu" (SciPy's SuperLU on the full matrix with a symmetric ordering and no pivoting,
+  so its pivots decide definiteness; the fallback without scikit-sparse, logged once).
+
+Measured (2026-11-23, 2 cores, idle machine; the three-motion shirt at subdivision 1,
+20,679 unknowns, 1.5-1.8M nonzeros in the factor, ~300 MFlop): one numerical
+factorisation takes 17-20 ms with PARDISO, 62-80 ms with CHOLMOD supernodal, 74-80 ms
+with CHOLMOD simplicial (which a BLAS cannot speed up; CHOLMOD supernodal with MKL's BLAS
+was no faster either).  A failed one costs 5 ms with PARDISO (it stops early).  Six warm
+states after a 1.5% design change in one process, tol 1e-3: 13.5 s with PARDISO against
+30.7 s simplicial and 35.2 s supernodal, with identical Newton iterations (174).
 """
 
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
@@ -133,42 +148,77 @@ def build_pattern(n_vertices: int, tri: np.ndarray, spring_index: np.ndarray) ->
 
 
 class SparseCholesky:
-    """Factorise ``H + beta I`` for a fixed pattern: CHOLMOD if available, else ``splu``.
+    """Factorise ``H + beta I`` for a fixed pattern (module doc).
 
-    mode : "simplicial" (LDL', rank updates in place) or "supernodal" (LL' through BLAS;
-    rank updates of up to ``WOODBURY_MAX`` columns in all are applied at solve time by the
-    Woodbury identity, more refactorise ``H + C C^T``).
+    mode : "auto" (PARDISO if MKL is installed, else CHOLMOD simplicial), "pardiso",
+    "simplicial" (CHOLMOD LDL', rank updates in place), "supernodal" (CHOLMOD LL' through
+    BLAS) or "splu" (SciPy, no extra package; slow).  For "pardiso" and "supernodal", rank
+    updates of up to ``WOODBURY_MAX[mode]`` columns in all are applied at solve time by the
+    Woodbury identity; more refactorise ``H + C C^T``.  ``use_cholmod=False`` forces "splu".
     """
 
     _warned = False
-    WOODBURY_MAX = 48
+    WOODBURY_MAX: ClassVar[dict[str, int]] = {"supernodal": 48, "pardiso": 12}
+    openmp_used = False  # this process has run a CHOLMOD supernodal (OpenMP) factorisation
 
-    def __init__(self, pattern: HessianPattern, use_cholmod: bool = True, mode: str = "simplicial",
+    @staticmethod
+    def choose_mode(mode: str, use_cholmod: bool = True) -> str:
+        """The factorisation ``mode`` stands for in this environment (module doc).  Raises
+        ValueError for "pardiso" without MKL."""
+        from kgarment.sim import pardiso
+
+        if not use_cholmod or mode == "splu":
+            return "splu"
+        if mode == "auto":
+            mode = "pardiso" if pardiso.available() else "simplicial"
+        if mode == "pardiso" and not pardiso.available():
+            raise ValueError("factorization 'pardiso' needs Intel MKL (pip install mkl); "
+                             "or use 'auto', 'simplicial', 'supernodal' or 'splu'")
+        if mode in ("simplicial", "supernodal") and _cholmod is None:
+            if not SparseCholesky._warned:
+                log.warning("scikit-sparse (CHOLMOD) not available: falling back to scipy splu "
+                            "(install kgarment[solver] for speed)")
+                SparseCholesky._warned = True
+            return "splu"
+        return mode
+
+    def __init__(self, pattern: HessianPattern, use_cholmod: bool = True, mode: str = "auto",
                  ordering: str = "nesdis"):
         self.pattern = pattern
-        self.backend = "cholmod" if (use_cholmod and _cholmod is not None) else "splu"
-        self._factor = None
-        self._lu = None
-        self._H = self._full = None
+        self.mode = self.choose_mode(mode, use_cholmod)
+        self.backend = {"pardiso": "pardiso", "splu": "splu"}.get(self.mode, "cholmod")
+        self._factor = self._lu = self._pd = None
+        self._data = self._full = None
         self._C = self._Z = self._S = None  # Woodbury: C (n, a) sparse, Z = A^-1 C, S = cho_factor(I + C^T Z)
-        self.mode = mode
-        if self.backend == "cholmod":
+        if self.backend == "pardiso":
+            from kgarment.sim.pardiso import PardisoSolver
+
+            self._pd = PardisoSolver(pattern.indptr, pattern.indices)
+        elif self.backend == "cholmod":
+            if self.mode == "supernodal":
+                SparseCholesky.openmp_used = True
             data = np.zeros(pattern.nnz)
             data[pattern.diag_pos] = 1.0
-            self._factor = _cholmod.analyze(pattern.matrix(data), mode=mode, ordering_method=ordering)
-        elif not SparseCholesky._warned:
-            log.warning("scikit-sparse (CHOLMOD) not available: falling back to scipy splu "
-                        "(install kgarment[solver] for speed)")
-            SparseCholesky._warned = True
+            self._factor = _cholmod.analyze(pattern.matrix(data), mode=self.mode, ordering_method=ordering)
 
     def factorize(self, data: np.ndarray, beta: float = 0.0) -> None:
         """data : (nnz,) lower-triangle values.  Raises NotPositiveDefinite."""
-        H = self.pattern.matrix(data)
-        self._H = H
+        if beta:
+            data = data.copy()
+            data[self.pattern.diag_pos] += beta
+        self._data = data
         self._C = self._Z = self._S = None
+        self._numeric(data)
+
+    def _numeric(self, data: np.ndarray) -> None:
+        if self.backend == "pardiso":
+            if not self._pd.factorize(data):
+                raise NotPositiveDefinite("PARDISO: non-positive pivot")
+            return
+        H = self.pattern.matrix(data)
         if self.backend == "cholmod":
             try:
-                self._factor.cholesky_inplace(H, beta=beta)
+                self._factor.cholesky_inplace(H)
             except _cholmod.CholmodNotPositiveDefiniteError as exc:
                 raise NotPositiveDefinite(str(exc)) from exc
             # the simplicial LDL' factorisation does not fail on indefinite matrices
@@ -177,47 +227,52 @@ class SparseCholesky:
             return
         from scipy.sparse.linalg import splu
 
-        full = (H + H.T - sp.diags(H.diagonal()) + beta * sp.eye(H.shape[0])).tocsc()
-        self._full = full
-        try:
-            self._lu = splu(full)
+        self._full = (H + H.T - sp.diags(H.diagonal())).tocsc()
+        try:  # symmetric ordering, no pivoting: U = D L^T, so U's diagonal holds the pivots
+            self._lu = splu(self._full, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                            options={"SymmetricMode": True})
         except RuntimeError as exc:
             raise NotPositiveDefinite(str(exc)) from exc
+        if not (np.array_equal(self._lu.perm_r, self._lu.perm_c) and np.all(self._lu.U.diagonal() > 0)):
+            raise NotPositiveDefinite("LU pivots of the symmetric matrix are not all positive")
 
     def add_outer(self, cols: sp.csc_matrix) -> None:
         """Turn the current factor of H into that of ``H + C C^T``; ``cols`` is the (3N, a)
-        sparse C (simplicial: CHOLMOD rank-a update; supernodal: Woodbury, or a
-        refactorisation beyond ``WOODBURY_MAX`` columns; splu refactorises)."""
-        if self.backend == "cholmod" and self.mode == "simplicial":
+        sparse C whose outer products lie in the pattern (CHOLMOD simplicial: a rank-a
+        update in place; PARDISO and supernodal: Woodbury up to ``WOODBURY_MAX`` columns
+        in all, else a refactorisation; splu refactorises)."""
+        if self.mode == "simplicial":
             self._factor.update_inplace(cols)
-        elif self.backend == "cholmod":
-            C = cols if self._C is None else sp.hstack([self._C, cols]).tocsc()
-            if C.shape[1] <= self.WOODBURY_MAX:
-                # (A + C C^T)^-1 = A^-1 - Z (I + C^T Z)^-1 Z^T with Z = A^-1 C: a few solves
-                # instead of a refactorisation; A + C C^T stays positive definite
-                Znew = self._factor(cols.toarray())
-                Z = Znew if self._Z is None else np.hstack([self._Z, Znew])
-                from scipy.linalg import cho_factor
+            return
+        C = cols if self._C is None else sp.hstack([self._C, cols]).tocsc()
+        if self.mode in self.WOODBURY_MAX and C.shape[1] <= self.WOODBURY_MAX[self.mode]:
+            # (A + C C^T)^-1 = A^-1 - Z (I + C^T Z)^-1 Z^T with Z = A^-1 C: a few solves
+            # instead of a refactorisation; A + C C^T stays positive definite
+            from scipy.linalg import cho_factor
 
-                self._C, self._Z = C, Z
-                self._S = cho_factor(np.eye(C.shape[1]) + C.T @ Z, lower=True)
-                return
-            self._H = (self._H + sp.tril(C @ C.T)).tocsc()  # later updates add to this one
-            self._C = self._Z = self._S = None
-            self._factor.cholesky_inplace(self._H)
-        else:
-            from scipy.sparse.linalg import splu
+            Znew = self._base_solve(cols.toarray())
+            self._Z = Znew if self._Z is None else np.hstack([self._Z, Znew])
+            self._C = C
+            self._S = cho_factor(np.eye(C.shape[1]) + C.T @ self._Z, lower=True)
+            return
+        outer = sp.tril(C @ C.T).tocoo()  # later updates add to this one
+        self._data = self._data + np.bincount(self.pattern.positions(outer.row, outer.col), weights=outer.data,
+                                              minlength=self.pattern.nnz)
+        self._C = self._Z = self._S = None
+        self._numeric(self._data)
 
-            self._full = (self._full + cols @ cols.T).tocsc()
-            self._lu = splu(self._full)
+    def _base_solve(self, rhs: np.ndarray) -> np.ndarray:
+        if self.backend == "pardiso":
+            return self._pd.solve(rhs)
+        if self.backend == "cholmod":
+            return self._factor(rhs)
+        return self._lu.solve(rhs)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """rhs : (3N,) -> (3N,)."""
-        if self.backend == "cholmod":
-            y = self._factor(rhs)
-            if self._C is not None:
-                from scipy.linalg import cho_solve
+        y = self._base_solve(rhs)
+        if self._C is not None:
+            from scipy.linalg import cho_solve
 
-                y = y - self._Z @ cho_solve(self._S, self._C.T @ y)
-            return y
-        return self._lu.solve(rhs)
+            y = y - self._Z @ cho_solve(self._S, self._C.T @ y)
+        return y

@@ -1,16 +1,17 @@
 """Newton's method with sparse Cholesky, Hessian modification and Armijo backtracking.
 
-Each iteration assembles the Hessian into the fixed CSC pattern, factorises it with
-CHOLMOD (symbolic analysis once per model, numeric factorisation per iteration), caps the
-step to ``max_step`` mean edge lengths per vertex and backtracks (Armijo).
+Each iteration assembles the Hessian into the fixed CSC pattern, factorises it with a
+sparse Cholesky (MKL PARDISO or CHOLMOD, ``assembly.SparseCholesky``: symbolic analysis
+once per model, numeric factorisation per iteration), caps the step to ``max_step`` mean
+edge lengths per vertex and backtracks (Armijo).
 
 Hessian (``SolverOptions.hessian``):
 
 * ``"shifted"`` (default): the *exact* Hessian (no projection, full contact term) plus a
   diagonal shift ``tau * s_v`` on every DOF (s_v: the local membrane stiffness ``Y t``),
-  increased x10 from 1e-3 until CHOLMOD factorises (Nocedal & Wright, alg. 3.3), lowered
-  x10 after each full step (unless that level failed in the last 3 iterations), raised
-  after a poor one.  After ``max_shifts`` failed tries (default 3, i.e. up to 1e-2) the
+  increased x10 from 1e-3 until the Cholesky factorisation succeeds (Nocedal & Wright,
+  alg. 3.3), lowered x10 after each full step (unless that level failed in the last 3
+  iterations), raised after a poor one.  After ``max_shifts`` failed tries (default 3, i.e. up to 1e-2) the
   iteration uses the element-wise projected Hessian instead: a larger shift would
   freeze everything else.  The garment's energy is genuinely non-convex (compressed
   clutch strips, triangles just inside the normal branch of the wrinkling rule,
@@ -27,7 +28,8 @@ curvature of the 3 GPa clutch forces a shift that freezes the 0.5 MPa cloth.  A 
 ``damping_min * (Y t)_cloth`` keeps directions without any stiffness (slack cloth
 hovering off the body) determinate.
 
-Contact anticipation (``_anticipate``): see there.  Extrapolation: after a full step that
+Contact anticipation (``_anticipate``): see there; ``SolverOptions.passes`` re-solves
+(1 at the design loop's tolerances, 3 below 1e-3).  Extrapolation: after a full step that
 lowered the energy by more than 3/4 of the linear prediction (negative curvature along
 the step: the garment sliding or buckling), step lengths 2, 4, ... 64 are tried while the
 energy keeps falling.
@@ -118,7 +120,7 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
                 mu = max(mu * 10.0, 1e-6)
             else:
                 break
-        dx = _anticipate(prob, x, H, rhs, dx, linsolver, opts.contact_passes)
+        dx = _anticipate(prob, x, H, rhs, dx, linsolver, opts.passes)
         move = np.sqrt((dx.reshape(-1, 3) ** 2).sum(1).max())
         if move > max_move:
             dx *= max_move / move

@@ -1,15 +1,20 @@
 """Solving states in worker processes (``SolverOptions.workers > 1``).
 
-CHOLMOD (through scikit-sparse) holds the GIL while it factorises, so threads do not
-overlap; states are independent, so they go to a pool of processes instead.  The pool is
-created on first use and kept for the rest of the session; each task carries the model,
+The sparse factorisations run one thread each (CHOLMOD through scikit-sparse also holds
+the GIL) and the rest of a Newton iteration is Python, so threads would not overlap;
+states are independent, so they go to a pool of processes instead.  The pool is created
+on first use and kept for the rest of the session; each task carries the model,
 one state and its warm start (a few MB, milliseconds to pickle).  Results come back in
 the order of the states.  Tasks are submitted longest first (by the Newton iterations the
 same state name took in the last call, a longest-processing-time schedule): with 6 states
 on 2 workers, a long state submitted last would leave one worker idle.  Each task is
-independent, so the order does not change any result.  Workers are forked (POSIX): "spawn" would re-run an unguarded
-calling script in every worker.  They run torch single-threaded, so no OpenMP state
-inherited from the parent is used, and ignore Ctrl-C (the main process handles it).
+independent, so the order does not change any result.  Workers are forked (POSIX): "spawn"
+would re-run an unguarded calling script in every worker.  The exception is a parent that
+has itself run a CHOLMOD supernodal factorisation (``factorization="supernodal"``): it runs
+GNU OpenMP regions, and a forked child of such a process hangs in its first own region
+(measured), so that parent's pool uses "forkserver".  MKL PARDISO runs sequentially
+(``pardiso``), so forking after it is safe.  Workers run torch and BLAS single-threaded and
+ignore Ctrl-C (the main process handles it).
 """
 
 from __future__ import annotations
@@ -26,16 +31,26 @@ _LAST_ITERATIONS: dict[str, int] = {}  # state name -> Newton iterations in the 
 def _pool(workers: int) -> ProcessPoolExecutor:
     pool = _POOLS.get(workers)
     if pool is None:
-        method = "fork" if "fork" in mp.get_all_start_methods() else "spawn"
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method), initializer=_ignore_sigint)
+        from kgarment.sim.assembly import SparseCholesky
+
+        methods = mp.get_all_start_methods()
+        method = "fork" if "fork" in methods else "spawn"
+        if SparseCholesky.openmp_used and "forkserver" in methods:
+            method = "forkserver"  # a fork would inherit OpenMP's threads as dead (assembly doc)
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method), initializer=_init_worker)
         _POOLS[workers] = pool
     return pool
 
 
-def _ignore_sigint() -> None:
+def _init_worker() -> None:
     """Workers leave Ctrl-C to the main process (which stops them): a worker interrupted
-    mid-task would leave the pool's shutdown waiting for it forever."""
+    mid-task would leave the pool's shutdown waiting for it forever.  They run BLAS on one
+    thread for good (``solve.blas_threads``: OpenBLAS's spinning idle threads would take
+    the other workers' cores)."""
+    from kgarment.sim.solve import blas_threads
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    blas_threads(1)
 
 
 @atexit.register
