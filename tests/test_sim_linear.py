@@ -141,3 +141,30 @@ def test_contact_passes_follow_the_tolerance():
     assert SolverOptions(tol=1e-2).passes == 1 and SolverOptions(tol=1e-3).passes == 1
     assert SolverOptions(tol=1e-4).passes == 3 and SolverOptions().passes == 3
     assert SolverOptions(tol=1e-2, contact_passes=2).passes == 2
+
+
+def test_shared_factorisations_are_per_pattern_and_thread():
+    """``SparseCholesky.shared`` hands back the same object for an equal pattern (also a
+    copy, as a worker process receives), another one for another pattern, mode or
+    thread, and keeps at most ``SHARED_MAX``; reuse leaves solves exact."""
+    import copy
+    import threading
+
+    pat, data, full = small_pattern(7, shift=20.0)
+    a = SparseCholesky.shared(pat)
+    assert SparseCholesky.shared(copy.deepcopy(pat)) is a
+    assert SparseCholesky.shared(pat, mode="splu") is not a
+    other = build_pattern(7, np.array([[0, 1, 2], [1, 3, 2], [2, 3, 4], [3, 5, 4], [4, 5, 6]]),
+                          np.zeros((0, 4), np.int64))
+    assert SparseCholesky.shared(other) is not a
+    assert SparseCholesky.shared(pat) is not a  # three patterns/modes used since: a was dropped
+    box = []
+    th = threading.Thread(target=lambda: box.append(SparseCholesky.shared(pat)))
+    th.start()
+    th.join()
+    assert box[0] is not SparseCholesky.shared(pat)
+    b = np.random.default_rng(1).normal(size=pat.n_dof)
+    for scale in (1.0, 2.0):
+        chol = SparseCholesky.shared(pat)
+        chol.factorize(data * scale)
+        assert np.allclose(chol.solve(b), np.linalg.solve(full * scale, b), rtol=1e-9)

@@ -66,7 +66,7 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
     t0 = time.perf_counter()
     model = prob.model
     if linsolver is None:
-        linsolver = SparseCholesky(model.pattern, use_cholmod=opts.use_cholmod, mode=opts.factorization)
+        linsolver = SparseCholesky.shared(model.pattern, use_cholmod=opts.use_cholmod, mode=opts.factorization)
     k_ref = model.preset.cloth_stiffness
     tol_f = opts.tol
     max_move = opts.max_step * model.mean_edge

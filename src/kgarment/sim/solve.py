@@ -161,7 +161,7 @@ def blas_threads(threads: int | None):
 def _solve_all(model, design, states, warm, options) -> list[StateResult]:
     linsolver = None
     if options.method == "newton":
-        linsolver = SparseCholesky(model.pattern, use_cholmod=options.use_cholmod, mode=options.factorization)
+        linsolver = SparseCholesky.shared(model.pattern, use_cholmod=options.use_cholmod, mode=options.factorization)
     results = []
     for state, w in zip(states, warm):
         prob = prepare_state(model, design, state, options)
