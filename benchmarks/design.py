@@ -20,6 +20,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from kgarment.problem import example_path
+
 ROOT = Path(__file__).resolve().parents[1]
 CHILD = """
 import resource, sys
@@ -35,7 +37,7 @@ sys.exit(rc)
 
 
 def run(sub: int, out: Path, max_iterations: int | None) -> dict:
-    args = [sys.executable, "-c", CHILD, "-q", "design", str(ROOT / "examples" / "shirt_three_motions.toml"),
+    args = [sys.executable, "-c", CHILD, "-q", "design", str(example_path("shirt_three_motions")),
             "--subdivision", str(sub), "--out", str(out), "--force"]
     if max_iterations:
         args += ["--max-iterations", str(max_iterations)]

@@ -38,8 +38,7 @@ def setup(sub: int, preset: str):
     from kgarment.clutch import MeshTopology, build_clutch
     from kgarment.clutch.layouts import default_layout
     from kgarment.garment import make_garment
-    from kgarment.sim import SimState, build_model
-    from kgarment.simulate import sim_motions
+    from kgarment.sim import SimState, build_model, garment_motions
 
     lib = builtin_motions()
     body = load_anny_body([lib[m] for m in ("arms_forward", "arms_raise", "bend_forward")])
@@ -47,7 +46,7 @@ def setup(sub: int, preset: str):
     topo = MeshTopology(g.rest_vertices, g.faces)
     strips = [build_clutch(s, g.rest_vertices, g.faces, topology=topo) for s in default_layout("shirt", body)]
     model = build_model(g.rest_vertices, g.faces, strips, preset=preset)
-    motions = sim_motions(body, g)
+    motions = garment_motions(body, g)
     states = [SimState.create(m, np.full(len(strips), a), name=f"{n}[{'on' if a else 'off'}]")
               for n, m in motions.items() for a in (1.0, 0.0)]
     return g, model, states

@@ -8,8 +8,14 @@ import numpy as np
 import pytest
 
 from kgarment.design.beso import (
-    BesoParams, converged, interpolate, next_target, one_ring_filter, radius_filter,
-    sensitivity_factor, update_design,
+    BesoParams,
+    converged,
+    interpolate,
+    next_target,
+    one_ring_filter,
+    radius_filter,
+    sensitivity_factor,
+    update_design,
 )
 from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
 from kgarment.design.objective import combine_sensitivities

@@ -7,8 +7,9 @@ import pytest
 import trimesh
 
 from kgarment.design import BesoParams
-from kgarment.design.loop import DesignSetup, initial_state, run_loop
+from kgarment.design.loop import initial_state, run_loop
 from kgarment.design.run import load_checkpoint, save_checkpoint
+from kgarment.design.setup import DesignSetup
 
 
 def _sheet_setup(objective="passive", max_iterations=12, target=0.3, n=10):
@@ -32,7 +33,7 @@ def _sheet_setup(objective="passive", max_iterations=12, target=0.3, n=10):
     motion = Motion.create("pull", X1, far, ball.vertex_normals, attach, targets, ball.faces)
     model = build_model(V, F, [], preset="reference")
     params = BesoParams(target_area=target, er=0.1, ar_max=0.05, max_iterations=max_iterations)
-    return DesignSetup(model, {"pull": motion}, objective, params, SolverOptions()), cent
+    return DesignSetup.build(model, {"pull": motion}, objective, params, SolverOptions()), cent
 
 
 def test_reinforcement_follows_the_load_path_and_the_objective_grows():
@@ -81,11 +82,10 @@ def test_evolution_tolerance_only_while_the_area_changes():
     import math
 
     fine, _ = _sheet_setup(max_iterations=40)
-    fine.solver = dataclasses.replace(fine.solver, tol=1e-4)
+    fine = dataclasses.replace(fine, solver=dataclasses.replace(fine.solver, tol=1e-4))
     ref = run_loop(fine, initial_state(fine))
     setup, _ = _sheet_setup(max_iterations=40)
-    setup.solver = fine.solver
-    setup.evolution_solver = dataclasses.replace(fine.solver, tol=1e-2)
+    setup = dataclasses.replace(setup, solver=fine.solver, evolution_solver=dataclasses.replace(fine.solver, tol=1e-2))
     st = run_loop(setup, initial_state(setup))
     tols = [r["solver_tol"] for r in st.metrics]
     at_target = [r["target"] == setup.params.target_area for r in st.metrics]
@@ -103,9 +103,9 @@ def test_evolution_tolerance_only_while_the_area_changes():
 
 
 def test_protected_faces(anny_body):
-    from kgarment.design.driver import protected_faces
     from kgarment.clutch import build_clutch
     from kgarment.clutch.layouts import default_layout
+    from kgarment.design.setup import protected_faces
     from kgarment.garment import make_garment
 
     g = make_garment(anny_body, "arm_sleeve.right", 0)
@@ -123,13 +123,14 @@ def test_activation_continuation_reaches_the_on_equilibrium(anny_body):
 
     import torch
 
-    from kgarment.design.driver import CONTINUATION, activation_continuation, build_setup
+    from kgarment.design.evaluate import CONTINUATION, activation_continuation
+    from kgarment.design.setup import setup_from_problem
     from kgarment.problem import GarmentSpec, Problem, build_clutches, build_garment
     from kgarment.sim.solve import prepare_state
 
     p = Problem(motions=("arm_flexion.right",), garment=GarmentSpec("arm_sleeve.right", subdivision=0))
     g = build_garment(p, anny_body)
-    setup = build_setup(p, anny_body, g, build_clutches(p, anny_body, g))
+    setup = setup_from_problem(p, anny_body, g, build_clutches(p, anny_body, g), "evaluate")
     setup = dataclasses.replace(setup, solver=dataclasses.replace(setup.solver, workers=1))
     design = np.where(np.arange(g.n_faces) % 3 == 0, 1.0, setup.model.preset.x_min)
     on = next(s for k, s in setup.states() if k[1] == "on")

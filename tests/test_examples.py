@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
-from kgarment.problem import clutch_specs, load_problem, parse_problem, problem_to_dict
+from kgarment.problem import (
+    clutch_specs,
+    example_files,
+    load_problem,
+    parse_problem,
+    problem_to_dict,
+)
 
-EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "examples").glob("*.toml"))
+EXAMPLES = example_files()
 
 
 def test_there_is_an_example_per_experiment():
@@ -20,7 +24,7 @@ def test_there_is_an_example_per_experiment():
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
 def test_example_parses_and_round_trips(path, anny_body, tmp_path):
     p = load_problem(path)
-    assert p.design.target_area in (0.15, 0.20)
+    assert p.design.beso.target_area in (0.15, 0.20)
     specs = clutch_specs(p, anny_body)
     assert specs, "every experiment has clutches"
     from kgarment.clutch import save_clutches
@@ -28,7 +32,7 @@ def test_example_parses_and_round_trips(path, anny_body, tmp_path):
     save_clutches(tmp_path / "c.toml", specs)
     again = parse_problem(problem_to_dict(p, tmp_path / "c.toml"), tmp_path)
     assert again.motions == p.motions and again.garment == p.garment
-    assert again.design == p.design and again.solver == p.solver
+    assert again.design == p.design and again.solver == p.solver and again.materials == p.materials
     assert [s.name for s in clutch_specs(again, anny_body)] == [s.name for s in specs]
 
 
@@ -48,3 +52,23 @@ def test_bad_design_sections(toml, message):
 
     with pytest.raises(KgarmentError, match=message.replace("(", r"\(").replace(")", r"\)")):
         parse_problem(tomllib.loads(toml))
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
+def test_example_runs_at_the_smallest_size(path, anny_body, tmp_path, capsys):
+    """Every example designs end to end at subdivision 0 for two iterations (the full
+    garment, then one BESO update) from the command line, like a user's first try."""
+    import json
+
+    from kgarment.cli import main
+
+    run = tmp_path / "run"
+    assert main(["design", str(path), "--subdivision", "0", "--max-iterations", "2", "--out", str(run)]) == 0
+    rows = json.loads((run / "metrics.json").read_text())
+    p = load_problem(path)
+    assert [r["iteration"] for r in rows] == [0, 1]
+    assert rows[0]["area"] == pytest.approx(1.0) and rows[1]["area"] < 1.0
+    for m in p.motions:  # rho of the fully reinforced garment is 1 by definition
+        assert rows[0][f"rho[{m}:on]"] == pytest.approx(1.0) and rows[0][f"rho[{m}:off]"] == pytest.approx(1.0)
+    assert (run / "final" / "design.png").is_file()
+    assert "2 iterations" in capsys.readouterr().out

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from test_fabricate_support import band_design, sleeve, sleeve_clutches, write_run  # noqa: F401
 
-from kgarment.cli_fabricate import add_parser
+from kgarment.cli.fabricate import add_parsers as add_parser
 from kgarment.errors import KgarmentError
 
 FILES = ("cut_patterns.svg", "cut_patterns.dxf", "cut_patterns.pdf", "design_clean.glb", "design_clean.obj",

@@ -7,7 +7,7 @@ import pytest
 
 from kgarment.errors import KgarmentError
 from kgarment.garment import builtin_templates, garment_from_mask, make_garment
-from kgarment.garment.topology import manifold_problems, midpoint_subdivide, boundary_loops
+from kgarment.garment.topology import boundary_loops, manifold_problems, midpoint_subdivide
 
 
 @pytest.mark.parametrize("name", list(builtin_templates()))

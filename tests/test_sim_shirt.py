@@ -17,11 +17,11 @@ def shirt_scene(anny_body):
     from kgarment.clutch import build_clutch
     from kgarment.clutch.layouts import default_layout
     from kgarment.garment import make_garment
-    from kgarment.simulate import sim_motions
+    from kgarment.sim import garment_motions
 
     g = make_garment(anny_body, "short_sleeve_shirt", 0)
     strips = [build_clutch(s, g.rest_vertices, g.faces) for s in default_layout("shirt", anny_body)]
-    return g, strips, sim_motions(anny_body, g, PAPER_MOTIONS)
+    return g, strips, garment_motions(anny_body, g, PAPER_MOTIONS)
 
 
 @pytest.mark.parametrize("preset", ["paper", "reference"])

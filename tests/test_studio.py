@@ -196,13 +196,13 @@ def test_clutch_edits_validate_first(state):
     with pytest.raises(KgarmentError, match="budget"):
         state.set_budget(1.5)
     state.set_budget(0.2)
-    assert state.problem.design.target_area == 0.2
+    assert state.problem.design.beso.target_area == 0.2
 
 
 # ----- sessions ---------------------------------------------------------------------------
 def test_session_round_trip(state, tmp_path, anny_body):
+    from kgarment.design import load_design
     from kgarment.problem import clutch_specs, load_problem
-    from kgarment.simulate import load_design
 
     c = state.graph.centroids
     state.paint(200, c[200], 0.03)
@@ -218,9 +218,9 @@ def test_session_round_trip(state, tmp_path, anny_body):
                                                           "design.npz", "attachments.npz", "compare.npz"}
     # every piece is a normal kgarment file
     p = load_problem(tmp_path / "s" / "problem.toml")
-    assert p.design.target_area == 0.2 and p.garment == state.problem.garment
+    assert p.design.beso.target_area == 0.2 and p.garment == state.problem.garment
     assert [x.name for x in clutch_specs(p, anny_body)] == state.clutch_names()
-    assert np.array_equal(load_design(tmp_path / "s" / "design.npz", g.n_faces) > 0.5, state.design)
+    assert np.array_equal(load_design(str(tmp_path / "s" / "design.npz"), g.n_faces) > 0.5, state.design)
     # and the session reopens to the same layers
     opened = read_source(tmp_path / "s")
     assert opened.kind == "session" and opened.settings["motion"] == "arms_raise.right"
@@ -263,13 +263,13 @@ def test_bad_sources_are_one_line_errors(state, tmp_path):
 
 
 def test_export_design_reads_back(state, tmp_path):
-    from kgarment.simulate import load_design
+    from kgarment.design import load_design
 
     d = np.zeros(state.n_faces, bool)
     d[:100] = True
     out = export_design(tmp_path / "d", d, state.base_garment, iteration=3)
     assert out.suffix == ".npz"
-    assert np.array_equal(load_design(out, state.n_faces) > 0.5, d)
+    assert np.array_equal(load_design(str(out), state.n_faces) > 0.5, d)
     with pytest.raises(KgarmentError, match="faces"):
         export_design(tmp_path / "e.npz", d[:10], state.base_garment)
 
@@ -281,7 +281,7 @@ def fake_run(folder, problem, designs):
 
     import tomli_w
 
-    from kgarment.paths import atomic_save_npz
+    from kgarment.io import atomic_save_npz
     from kgarment.problem import problem_to_dict
 
     folder.mkdir(parents=True)
@@ -295,31 +295,32 @@ def fake_run(folder, problem, designs):
 
 
 def test_runs_open_check_and_scrub(state, tmp_path):
-    from kgarment.problem import GarmentSpec, Phenotype
-    from kgarment.studio.runs import check_compatible, open_run, progress_image
+    from kgarment.body import Phenotype
+    from kgarment.problem import GarmentSpec
+    from kgarment.studio.runs import check_compatible, progress_image, read_run
 
     m = state.n_faces
     designs = np.ones((3, m), bool)
     designs[1, ::2] = False
     designs[2, ::3] = False
-    run = open_run(fake_run(tmp_path / "r", state.problem, designs))
+    run = read_run(fake_run(tmp_path / "r", state.problem, designs))
     check_compatible(run, state.problem, m)
     assert run.n_iterations == 3 and np.array_equal(run.design(1), designs[1])
     assert "iteration 2" in run.summary(2) and "m:on 1.00" in run.summary(2)
     with pytest.raises(KgarmentError, match="0..2"):
         run.design(5)
     other = dataclasses.replace(state.problem, garment=GarmentSpec("arm_sleeve.right", subdivision=1))
-    run2 = open_run(fake_run(tmp_path / "r2", other, np.ones((1, 2252), bool)))
+    run2 = read_run(fake_run(tmp_path / "r2", other, np.ones((1, 2252), bool)))
     with pytest.raises(KgarmentError, match="subdivision 1 .2252 faces.*subdivision 0 .563 faces"):
         check_compatible(run2, state.problem, m)
     import kgarment.problem as kp
 
     fat = dataclasses.replace(state.problem, body=kp.BodySpec("anny", Phenotype(weight=0.9)))
-    run3 = open_run(fake_run(tmp_path / "r3", fat, designs))
+    run3 = read_run(fake_run(tmp_path / "r3", fat, designs))
     with pytest.raises(KgarmentError, match="different body"):
         check_compatible(run3, state.problem, m)
     with pytest.raises(KgarmentError, match="not a run folder"):
-        open_run(tmp_path)
+        read_run(tmp_path)
     img = progress_image(run.metrics)
     assert img.ndim == 3 and img.shape[2] == 3 and img.dtype == np.uint8
     assert progress_image([]).shape == img.shape

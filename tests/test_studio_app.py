@@ -28,10 +28,10 @@ def free_port() -> int:
 
 
 def problem():
-    from kgarment.problem import GarmentSpec, Problem, SolverSpec
+    from kgarment.problem import GarmentSpec, MaterialSpec, Problem
 
     return Problem(motions=("arm_flexion.right",), garment=GarmentSpec("arm_sleeve.right", subdivision=0),
-                   solver=SolverSpec(preset="reference"))
+                   materials=MaterialSpec(preset="reference"))
 
 
 @pytest.fixture()
@@ -47,7 +47,7 @@ def studio(anny_body, tmp_path):
 def paint(studio, faces=(200, 300), radius=0.03):
     studio.settings.tool, studio.settings.radius = "paint reinforcement", radius
     for f in faces:
-        studio.click_face(f)
+        studio.edit.click_face(f)
 
 
 def last(studio):
@@ -55,8 +55,8 @@ def last(studio):
 
 
 def test_failed_jobs_keep_every_edit(studio, monkeypatch):
-    import kgarment.studio.evaluate as ev
     import kgarment.studio.optimise as op
+    import kgarment.studio.simulations as sim
 
     paint(studio)
     design, rev = studio.state.design.copy(), studio.state.revision
@@ -64,12 +64,12 @@ def test_failed_jobs_keep_every_edit(studio, monkeypatch):
     def explode(*a, **k):
         raise RuntimeError("the solver exploded")
 
-    monkeypatch.setattr(ev, "evaluate", explode)
-    job = studio.simulate("A")
+    monkeypatch.setattr(sim, "simulate_design", explode)
+    job = studio.sims.simulate("A")
     assert job.wait(30) and job.status == "failed"
     assert last(studio) == ("simulation failed: RuntimeError: the solver exploded", True)
-    monkeypatch.setattr(op, "run_optimisation", lambda *a, **k: (_ for _ in ()).throw(KgarmentError("no budget")))
-    job = studio.optimise()
+    monkeypatch.setattr(op, "run_design", lambda *a, **k: (_ for _ in ()).throw(KgarmentError("no budget")))
+    job = studio.optimiser.optimise()
     assert job.wait(30) and job.status == "failed" and last(studio) == ("optimisation failed: no budget", True)
     assert "Error" in studio.panel.message.content
     assert np.array_equal(studio.state.design, design) and studio.state.revision == rev and studio.state.dirty
@@ -84,13 +84,13 @@ def test_bad_input_is_a_message_and_changes_nothing(studio, tmp_path):
     studio.guarded(studio.click_ray, (0.0, -5.0, 3.0), (0.0, 0.0, 1.0))  # into the sky
     assert "not on the garment" in last(studio)[0]
     studio.settings.tool = "move clutch"
-    studio.guarded(studio.click_face, 10)
+    studio.guarded(studio.edit.click_face, 10)
     assert "select a clutch first" in last(studio)[0]
-    studio.guarded(studio.simulate, "B")
+    studio.guarded(studio.sims.simulate, "B")
     assert "no design B" in last(studio)[0]
-    studio.guarded(studio.stop_optimisation)
+    studio.guarded(studio.optimiser.stop)
     assert "no optimisation" in last(studio)[0]
-    studio.guarded(studio.add_clutch_at_landmarks, "upper_back", "chest")
+    studio.guarded(studio.edit.add_clutch_at_landmarks, "upper_back", "chest")
     assert "from the garment" in last(studio)[0]
     (tmp_path / "bad.toml").write_text("[garment\n")
     studio.guarded(studio.open, str(tmp_path / "bad.toml"))
@@ -99,44 +99,44 @@ def test_bad_input_is_a_message_and_changes_nothing(studio, tmp_path):
     assert "not valid TOML" in last(studio)[0] and last(studio)[1]
     other = dataclasses.replace(problem(), garment=dataclasses.replace(problem().garment, subdivision=1))
     fake_run(tmp_path / "run1", other, np.ones((2, 2252), bool))
-    studio.guarded(studio.open_run, str(tmp_path / "run1"))
-    assert "subdivision 1" in last(studio)[0] and studio.run is None
-    studio.guarded(studio.load_b, str(tmp_path / "run1"))
-    assert "subdivision 1" in last(studio)[0] and studio.compare is None
+    studio.guarded(studio.optimiser.open, str(tmp_path / "run1"))
+    assert "subdivision 1" in last(studio)[0] and studio.optimiser.run is None
+    studio.guarded(studio.sims.load_b, str(tmp_path / "run1"))
+    assert "subdivision 1" in last(studio)[0] and studio.sims.design_b is None
     assert studio.state is st and st.revision == rev and st.dirty
 
 
 def test_select_move_aim_delete_undo(studio):
-    st = studio.state
+    st, edit = studio.state, studio.edit
     strip = st.strips()[0]
     face = int(strip.bind_face[strip.centerline[0]])
     studio.settings.tool = "select"
-    studio.click_face(face)
-    assert studio.selected == strip.name and studio.panel.clutch.value == strip.name
+    edit.click_face(face)
+    assert edit.selected == strip.name and studio.panel.clutch.value == strip.name
     assert studio.panel.length.value == pytest.approx(strip.length)
-    studio.edit_selected(length=0.05)
+    edit.edit_selected(length=0.05)
     assert st.clutch(strip.name).length == 0.05
     before = st.strips()[0].vertices[0].copy()
     studio.settings.tool = "move clutch"
-    studio.click_face(face + 4)
+    edit.click_face(face + 4)
     assert not np.allclose(st.strips()[0].vertices[0], before)
-    studio.delete_selected()
-    assert strip.name not in st.clutch_names() and studio.selected is None
-    studio.undo()
+    edit.delete_selected()
+    assert strip.name not in st.clutch_names() and edit.selected is None
+    edit.undo()
     assert strip.name in st.clutch_names()
     studio.settings.tool = "place clutch"
-    studio.click_face(100)
-    assert studio.pending_start is not None
-    studio.click_face(102)
-    assert studio.pending_start is None and studio.selected == "clutch"
+    edit.click_face(100)
+    assert edit.pending_start is not None
+    edit.click_face(102)
+    assert edit.pending_start is None and edit.selected == "clutch"
 
 
 def test_simulate_compare_and_colour(studio):
     st = studio.state
     paint(studio, faces=(100, 200, 300, 400, 500), radius=0.04)
-    job = studio.simulate("A")
+    job = studio.sims.simulate("A")
     assert job.wait(240) and job.status == "done", job.message
-    rows = studio.eval_a.rows
+    rows = studio.sims.a.rows
     assert [(r["motion"], r["state"]) for r in rows] == [("arm_flexion.right", "on"), ("arm_flexion.right", "off")]
     assert all(np.isfinite(r["rho"]) and r["rho"] > 0 for r in rows)
     assert "rho A" in studio.panel.results.content
@@ -145,8 +145,8 @@ def test_simulate_compare_and_colour(studio):
     assert "J/m" in studio.panel.legend.content
     # the shown garment is the simulated equilibrium, not the skin-tight pose
     assert not np.allclose(studio.garment_positions(), st.base_garment.vertices("arm_flexion.right"))
-    studio.pin_as_b()
-    assert studio.eval_b is not None and "rho B" in studio.panel.results.content
+    studio.sims.pin_as_b()
+    assert studio.sims.b is not None and "rho B" in studio.panel.results.content
     paint(studio, faces=(50,))
     assert "before the latest edits" in studio.panel.results.content
     studio.settings.mode = "compare"
@@ -154,34 +154,79 @@ def test_simulate_compare_and_colour(studio):
     assert "A only" in legend and colors.shape == (st.n_faces, 3)
 
 
-def test_optimise_scrub_export_and_reopen(studio, tmp_path):
-    from kgarment.simulate import load_design
+def test_one_evaluator_per_configuration(studio):
+    """Edits of the design or the budget keep the evaluator (and the fully reinforced
+    equilibria it holds); other attachments make another one. Evaluations solve to
+    min([solver] tol, 1e-4)."""
+    from kgarment.studio.simulations import SimInputs
 
+    sims, st = studio.sims, studio.state
+    first = sims.evaluator(SimInputs.of(st))
+    assert first.setup.solver.tol == min(st.problem.solver.tol, 1e-4)
+    paint(studio)
+    st.set_budget(0.3)
+    assert sims.evaluator(SimInputs.of(st)) is first
+    studio.settings.tool = "erase attachments"
+    studio.edit.click_face(int(np.flatnonzero(st.attached)[0]))
+    assert sims.evaluator(SimInputs.of(st)) is not first
+    st.undo()
+    assert sims.evaluator(SimInputs.of(st)) is first
+
+
+def test_optimise_scrub_export_and_reopen(studio, tmp_path):
+    from kgarment.design import load_design
+
+    opt = studio.optimiser
     run = tmp_path / "runs" / "r1"
-    job = studio.optimise(str(run), max_iterations=2)
+    job = opt.optimise(str(run), max_iterations=2)
     assert job.wait(300) and job.status == "done", job.message
-    assert studio.run.n_iterations == 2 and studio.run_k == 1 and studio.settings.mode == "run"
+    assert opt.run.n_iterations == 2 and opt.k == 1 and studio.settings.mode == "run"
     # only the problem's motions, although the shared test body is posed in more
-    assert {k for k in studio.run.metrics[0] if k.startswith("rho[")} == {
+    assert {k for k in opt.run.metrics[0] if k.startswith("rho[")} == {
         "rho[arm_flexion.right:on]", "rho[arm_flexion.right:off]"}
     assert (run / "checkpoint.npz").is_file() and (run / "final" / "design.npz").is_file()
     assert studio.panel.plot.image.shape[2] == 3
-    studio.show_iteration(0)
-    studio.use_iteration()
+    opt.show_iteration(0)
+    opt.use_iteration()
     assert studio.state.design.all()  # iteration 0 is the fully reinforced garment
-    studio.undo()
+    studio.edit.undo()
     assert not studio.state.design.any()
-    studio.show_iteration(1)
-    out = studio.export_iteration(str(tmp_path / "it1"))
-    assert np.array_equal(load_design(out, studio.state.n_faces) > 0.5, studio.run.design(1))
+    opt.show_iteration(1)
+    out = str(opt.export_iteration(str(tmp_path / "it1")))
+    assert np.array_equal(load_design(out, studio.state.n_faces) > 0.5, opt.run.design(1))
     assert np.array_equal(load_design(f"{run}@1", studio.state.n_faces), load_design(out, studio.state.n_faces))
-    studio.use_iteration(as_b=True)
-    assert studio.compare[0] == "r1@1"
+    opt.use_iteration(as_b=True)
+    assert studio.sims.design_b.label == "r1@1"
     studio.save()
     studio.open(str(tmp_path / "session"))
-    assert studio.run is not None and studio.run.folder == run and studio.compare[0] == "r1@1"
+    assert opt.run is not None and opt.run.folder == run and studio.sims.design_b.label == "r1@1"
     studio.open(str(run))  # a run folder opens as a problem with its last design
     assert np.array_equal(studio.state.design, load_design(out, studio.state.n_faces) > 0.5)
+
+
+def test_stopped_optimisation_resumes_on_the_command_line_with_its_attachments(studio, tmp_path):
+    """A run started in the page and stopped there continues with ``kgarment design
+    --resume``, on the painted attachments (the driver reads attachments.npz back)."""
+    from kgarment.design import load_design_history, open_run, run_status
+
+    studio.settings.tool, studio.settings.radius = "erase attachments", 0.03
+    st = studio.state
+    ring = np.flatnonzero(st.attached)
+    studio.edit.click_face(int(ring[0]))
+    painted = st.attached.copy()
+    assert 0 < painted.sum() < st.base_garment.attached.sum()
+    run = tmp_path / "runs" / "stopped"
+    job = studio.optimiser.optimise(str(run), max_iterations=2)
+    job.cancel()  # checked after every iteration: the run stops after iteration 0
+    assert job.wait(300) and job.status == "cancelled", job.message
+    assert "kgarment design --resume" in last(studio)[0]
+    assert run_status(run) == "unfinished" and (run / "attachments.npz").is_file()
+    dr = open_run(None, run, resume=True)
+    assert np.array_equal(dr.garment.attached, painted) and dr.state.iteration == 1
+    done = subprocess.run([sys.executable, "-m", "kgarment.cli", "--quiet", "design", "--resume", str(run)],
+                          capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert run_status(run) == "finished" and len(load_design_history(run)) == 2
 
 
 def test_cli_serves_the_page(tmp_path, anny_body):
@@ -189,13 +234,10 @@ def test_cli_serves_the_page(tmp_path, anny_body):
     (tmp_path / "p.toml").write_text('[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n'
                                      '[motions]\nuse = ["arm_flexion.right"]\n')
     port = free_port()
-    code = ("import argparse, sys\nfrom kgarment.cli_studio import add_parser\n"
-            "ap = argparse.ArgumentParser(); sub = ap.add_subparsers()\n"
-            "def common(sp):\n    sp.add_argument('problem', nargs='?'); sp.add_argument('--device', default='cpu')\n"
-            "add_parser(sub, common)\nargs = ap.parse_args(sys.argv[1:])\nsys.exit(args.func(args))\n")
+    cmd = [sys.executable, "-m", "kgarment.cli", "studio"]
     # the default SIGINT disposition in the child: a test run started in the background
     # (nohup make test &) inherits SIGINT ignored, and Python then never raises KeyboardInterrupt
-    proc = subprocess.Popen([sys.executable, "-c", code, "studio", "p.toml", "--port", str(port)], cwd=tmp_path,
+    proc = subprocess.Popen(cmd + ["p.toml", "--port", str(port)], cwd=tmp_path,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
@@ -216,26 +258,41 @@ def test_cli_serves_the_page(tmp_path, anny_body):
         rest, _ = proc.communicate(timeout=60)  # keep reading: a full pipe would block the server's exit
         rc = proc.returncode
     assert rc == 0, "".join(lines) + rest
-    bad = subprocess.run([sys.executable, "-c", code, "studio", "missing.toml"], cwd=tmp_path,
-                         capture_output=True, text=True, check=False)
-    assert bad.returncode == 1 and "not found" in bad.stderr
+    bad = subprocess.run(cmd + ["missing.toml"], cwd=tmp_path, capture_output=True, text=True, check=False)
+    assert bad.returncode == 2 and "not found" in bad.stderr  # a user error: one line, status 2
+    assert len(bad.stderr.strip().splitlines()) == 1, bad.stderr
+
+
+def test_cli_overrides_cannot_change_the_garment_of_a_session(studio, tmp_path):
+    """--subdivision/--garment on a session with a design: a one-line error; on its
+    problem file they apply."""
+    from kgarment.studio import read_source
+
+    paint(studio)
+    studio.save()
+    opened = read_source(tmp_path / "session")
+    with pytest.raises(KgarmentError, match="cannot change the garment of a session"):
+        opened.with_overrides(subdivision=1)
+    assert opened.with_overrides(motions=["arm_flexion.right"]).problem == opened.problem
+    p = read_source(tmp_path / "session" / "problem.toml").with_overrides(subdivision=1).problem
+    assert p.garment.subdivision == 1
 
 
 def test_studio_rho_equals_kgarment_evaluate(anny_body):
-    """The studio's simulation gives the numbers of ``kgarment evaluate`` (same solves)."""
-    from kgarment.cli_design import evaluate_design
-    from kgarment.problem import build_clutches
-    from kgarment.studio.evaluate import evaluate
+    """The studio's simulation (one state at a time, its own garment and clutch strips)
+    gives the numbers of ``kgarment evaluate`` (all states together, built from the problem)."""
+    from kgarment.design import Evaluator, design_values
     from kgarment.studio.session import build_state
+    from kgarment.studio.simulations import SimInputs, simulate_design
 
     p = problem()
     p = dataclasses.replace(p, design=dataclasses.replace(p.design, objective="compliance"))
     st = build_state(Opened("problem", p), anny_body)
     d = np.zeros(st.n_faces, bool)
     d[::3] = True
-    mine = evaluate(p, st.body, st.garment, build_clutches(p, st.body, st.base_garment), d)
-    theirs = evaluate_design(p, st.design_values(d))
-    assert [(r["motion"], r["state"]) for r in mine.rows] == [(r["motion"], r["state"]) for r in theirs]
+    mine = simulate_design(SimInputs.of(st).evaluator(), d, p.motions)
+    theirs = Evaluator.from_problem(p).evaluate(design_values(d)).states
+    assert [(r["motion"], r["state"]) for r in mine.rows] == [(r.motion, r.state) for r in theirs]
     for a, b in zip(mine.rows, theirs):
-        assert a["rho"] == pytest.approx(b["rho"], rel=1e-6)
-        assert a["energy_full"] == pytest.approx(b["energy_full"], rel=1e-6)
+        assert a["rho"] == pytest.approx(b.rho, rel=1e-6)
+        assert a["energy_full"] == pytest.approx(b.energy_full, rel=1e-6)

@@ -196,12 +196,12 @@ def test_place_paint_save_in_the_browser(studio, tmp_path):
     # the saved files hold what the page did
     folder = tmp_path / "session"
     from kgarment.clutch import load_clutches
+    from kgarment.design import load_design
     from kgarment.problem import load_problem
-    from kgarment.simulate import load_design
 
     names = [c.name for c in load_clutches(folder / "clutches.toml")]
     assert names == st.clutch_names() and "elbow_outer_R" in names and "clutch" in names
-    design = load_design(folder / "design.npz", len(faces)) > 0.5
+    design = load_design(str(folder / "design.npz"), len(faces)) > 0.5
     assert design[[200, 240]].all() and np.array_equal(design, st.design)
     assert load_problem(folder / "problem.toml").garment.template == "arm_sleeve.right"
     meta = tomllib.loads((folder / "studio.toml").read_text())

@@ -15,3 +15,8 @@ def unknown(kind: str, name: str, valid) -> KgarmentError:
     """An error for an unknown name, listing the valid ones."""
     valid = sorted(valid)
     return KgarmentError(f"unknown {kind} {name!r}; valid: {', '.join(map(str, valid))}")
+
+
+class Cancelled(Exception):
+    """A long computation (an evaluation, a design run) was asked to stop between steps;
+    what it computed so far is kept (a run folder stays resumable)."""

@@ -20,7 +20,7 @@ import numpy as np
 from kgarment.body.model import Body
 from kgarment.body.motions import Motion, bone_rotations
 from kgarment.errors import KgarmentError
-from kgarment.paths import atomic_save_npz, cache_dir
+from kgarment.io import atomic_save_npz, cache_dir
 
 log = logging.getLogger(__name__)
 CACHE_FORMAT = 1

@@ -10,7 +10,13 @@ Typical use::
 """
 
 from kgarment.clutch.errors import ClutchError
-from kgarment.clutch.io import clutch_record, load_clutches, save_clutches, strip_start_direction
+from kgarment.clutch.io import (
+    clutch_record,
+    clutch_spec_from_record,
+    load_clutches,
+    save_clutches,
+    strip_start_direction,
+)
 from kgarment.clutch.mesh import MIN_SEGMENT, build_strip
 from kgarment.clutch.spec import (
     MAX_SNAP_DISTANCE,
@@ -42,6 +48,7 @@ __all__ = [
     "build_clutch",
     "build_strip",
     "clutch_record",
+    "clutch_spec_from_record",
     "load_clutches",
     "resolve_start",
     "save_clutches",

@@ -38,6 +38,7 @@ from kgarment.clutch.spec import (
 )
 from kgarment.clutch.strip import ClutchStrip
 from kgarment.clutch.topology import MeshTopology
+from kgarment.io import atomic_write_text
 
 FORMAT = "kgarment.clutches"
 VERSION = 1
@@ -136,10 +137,8 @@ def save_clutches(
     if dup:
         raise ClutchError(f"{path}: duplicate clutch names {dup}")
     doc = {"format": FORMAT, "version": VERSION, "units": "m", "clutch": records}
-    if path.suffix.lower() == ".json":
-        path.write_text(json.dumps(doc, indent=2) + "\n")
-    else:
-        path.write_bytes(tomli_w.dumps(doc).encode())
+    text = json.dumps(doc, indent=2) + "\n" if path.suffix.lower() == ".json" else tomli_w.dumps(doc)
+    atomic_write_text(path, text)
 
 
 def _field(rec: Mapping, key: str, where: str, kind: str) -> object:
@@ -154,7 +153,9 @@ def _field(rec: Mapping, key: str, where: str, kind: str) -> object:
     return v
 
 
-def _spec(rec: object, k: int, fname: str) -> ClutchSpec:
+def clutch_spec_from_record(rec: object, k: int, fname: str) -> ClutchSpec:
+    """One clutch table (from a clutch file or a problem's [[clutches.clutch]]) -> ClutchSpec;
+    errors name the file (``fname``) and the clutch."""
     where = fname
     if not isinstance(rec, Mapping):
         raise ClutchError(f"{where}: clutch #{k} must be a table, got {type(rec).__name__}")
@@ -211,7 +212,7 @@ def load_clutches(path: str | Path) -> list[ClutchSpec]:
     recs = doc.get("clutch", [])
     if not isinstance(recs, list):
         raise ClutchError(f"{path}: field 'clutch' must be an array of tables")
-    specs = [_spec(r, k, str(path)) for k, r in enumerate(recs)]
+    specs = [clutch_spec_from_record(r, k, str(path)) for k, r in enumerate(recs)]
     names = [s.name for s in specs]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:

@@ -7,42 +7,31 @@ Design variable x_e in {x_min, 1} per garment triangle (soft-kill, method.md sec
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.sparse as sp
 
-X_MIN = 1e-3
-PENALTY = 1.6
+from kgarment.constants import PENALTY, X_MIN
+from kgarment.problem.spec import BesoParams
+
+__all__ = [
+    "PENALTY",
+    "X_MIN",
+    "BesoParams",
+    "converged",
+    "design_values",
+    "interpolate",
+    "next_target",
+    "one_ring_filter",
+    "radius_filter",
+    "sensitivity_factor",
+    "update_design",
+]
 
 
-@dataclass(frozen=True)
-class BesoParams:
-    """BESO settings (paper defaults).
-
-    target_area : A*, reinforced area fraction to reach (0.15; 0.20 for the sleeve).
-    er : evolution ratio, the target area shrinks by this fraction per iteration.
-    ar_max : at most this fraction of the faces may be added per iteration.
-    p, x_min : material interpolation exponent and soft-kill minimum.
-    filter : "one_ring" (paper) or "radius" (classic BESO mesh-independent filter).
-    radius : filter radius in metres for "radius".
-    history : average sensitivities with the previous iteration's (halves flicker).
-    tol, window : converged when the target is reached and the objective changed less than
-        ``tol`` (relative) over ``window`` iterations.
-    max_iterations : hard stop.
-    """
-
-    target_area: float = 0.15
-    er: float = 0.015
-    ar_max: float = 0.015
-    p: float = PENALTY
-    x_min: float = X_MIN
-    filter: str = "one_ring"
-    radius: float = 0.02
-    history: bool = True
-    tol: float = 1e-3
-    window: int = 5
-    max_iterations: int = 200
+def design_values(reinforced: np.ndarray) -> np.ndarray:
+    """(m,) float64 design for the simulator from (m,) bool ``reinforced``: 1.0 where
+    reinforced, :data:`~kgarment.constants.X_MIN` (plain cloth) elsewhere."""
+    return np.where(np.asarray(reinforced, dtype=bool), 1.0, X_MIN)
 
 
 def interpolate(x: np.ndarray, y0: float | np.ndarray, y1: float | np.ndarray, p: float = PENALTY) -> np.ndarray:
@@ -129,7 +118,7 @@ def update_design(x: np.ndarray, alpha: np.ndarray, areas: np.ndarray, target: f
         new_solid = np.zeros_like(solid)
         new_solid[best_add] = True
         new_solid[sol[:max(0, min(ks, len(sol)))]] = True
-    return np.where(new_solid, 1.0, params.x_min)
+    return design_values(new_solid)
 
 
 def converged(history: list[float], reached: bool, params: BesoParams) -> bool:

@@ -1,10 +1,16 @@
-"""The BESO design loop over simulated states, with checkpoints after every iteration.
+"""The BESO design loop over simulated states, split into pure steps.
 
-One iteration: solve every state (motion x activation) for the current design, warm
-started from the previous iteration's equilibria (the last converged one per state; see
-``WARM_MAX_RESIDUAL``); turn element energy densities into
-sensitivities; combine them by the objective; filter; average with the previous
-iteration; record metrics; update the design towards the next target area.
+One iteration (:func:`iterate`) is four steps, each a function of the frozen
+:class:`~kgarment.design.setup.DesignSetup` and the immutable :class:`LoopState`:
+
+1. :func:`solve`: every state (motion x activation) for the current design, warm started
+   from the previous iteration's equilibria (the last converged one per state; see
+   ``WARM_MAX_RESIDUAL``) -> :class:`Solved` (equilibria, stored energies);
+2. :func:`sensitivities`: element energy densities -> sensitivities, combined by the
+   objective, filtered, averaged with the previous iteration's;
+3. :func:`metrics_row`: the iteration's metrics (area, objective, rho per state, islands,
+   clutch ends, solver effort);
+4. :func:`advance`: the next state (a new design towards the next target area, or done).
 
 An iteration in which a state did not converge records its metrics (flagged in
 ``unconverged_states``) but updates the design with the previous iteration's filtered
@@ -20,14 +26,21 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from kgarment.design.beso import BesoParams, converged, next_target, one_ring_filter, radius_filter, update_design
+from kgarment.design.beso import converged, next_target, update_design
 from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
-from kgarment.design.objective import combine_sensitivities, objective_value, states_needed
-from kgarment.garment.topology import face_adjacency, triangle_areas
+from kgarment.design.objective import combine_sensitivities, objective_value
+from kgarment.design.setup import DesignSetup, StateKey
+from kgarment.sim import (
+    SimState,
+    SolverOptions,
+    StateResult,
+    log_stiffness_derivative,
+    solve_states,
+)
 
 log = logging.getLogger(__name__)
 
@@ -46,110 +59,66 @@ log = logging.getLogger(__name__)
 WARM_MAX_RESIDUAL = 0.0
 
 
-@dataclass
-class DesignSetup:
-    """Everything the loop needs, precomputed once.
-
-    model : kgarment.sim.SimModel; motions : {name: kgarment.sim.Motion};
-    objective : "active" | "passive" | "compliance"; params : BesoParams;
-    solver : kgarment.sim.SolverOptions; evolution_solver : the options while the target
-    area is still changing (None: ``solver``; see ``kgarment.problem.SolverSpec``);
-    protected : (m,) bool faces kept reinforced.
-    """
-
-    model: object
-    motions: dict
-    objective: str
-    params: BesoParams
-    solver: object
-    evolution_solver: object = None
-    protected: np.ndarray | None = None
-    filter_matrix: object = None
-    areas: np.ndarray = field(default=None)
-    adjacency: object = None
-    end_faces: list = field(default_factory=list)
-
-    def __post_init__(self):
-        m = self.model
-        X, F = m.garment_rest, m.garment_faces
-        tri = X[F]
-        self.areas = triangle_areas(X, F)
-        if self.params.filter == "radius":
-            self.filter_matrix = radius_filter(tri.mean(1), self.areas, self.params.radius)
-        else:
-            self.filter_matrix = one_ring_filter(F, self.areas, len(X))
-        self.adjacency = face_adjacency(F)
-        self.end_faces = []
-        for c in m.clutches:
-            a = np.asarray(c.anchors)
-            self.end_faces.append((np.asarray(c.bind_face)[a[[0, 1, 2]]], np.asarray(c.bind_face)[a[[3, 4, 5]]]))
-
-    def options(self, st: LoopState):
-        """The solver options of iteration ``st``: ``evolution_solver`` from iteration 1 while
-        the target area differs from A*, ``solver`` otherwise."""
-        if self.evolution_solver is not None and evolving(self, st):
-            return self.evolution_solver
-        return self.solver
-
-    @property
-    def n_clutches(self) -> int:
-        return len(self.model.clutches)
-
-    def states(self):
-        """[(key (motion, state), SimState)] for the objective."""
-        from kgarment.sim import SimState
-
-        out = []
-        for name, motion in self.motions.items():
-            for s in states_needed(self.objective):
-                g = {"on": 1.0, "off": 0.0, "none": 0.0}[s] * np.ones(self.n_clutches)
-                out.append(((name, s), SimState.create(motion, g, name=f"{name}[{s}]")))
-        return out
-
-    def clutch_area(self) -> float:
-        total = sum(float(triangle_areas(c.vertices, c.faces).sum()) for c in self.model.clutches)
-        return total if self.objective != "passive" else 0.0
-
-
-@dataclass
+@dataclass(frozen=True)
 class LoopState:
-    """What a checkpoint holds: enough to continue bit-identically."""
+    """Where a run stands: what a checkpoint holds, enough to continue bit-identically.
+
+    iteration : the next iteration to run;  design : (m,) its design in {x_min, 1};
+    target : its target area share;  alpha_prev : (m,) the last filtered sensitivities or
+    None;  warm : {state name: (N, 3) start positions, m};  objectives : per finished
+    iteration, NaN where it does not count towards convergence;  reference : {StateKey:
+    energy J of the fully reinforced garment (iteration 0)};  reference_stored : {StateKey:
+    Stored};  designs : per finished iteration its (m,) bool design;  metrics : per finished
+    iteration its metrics row;  done : converged or out of iterations.
+    """
 
     iteration: int
     design: np.ndarray
     target: float
     alpha_prev: np.ndarray | None
-    warm: dict
-    objectives: list
-    reference: dict
-    reference_stored: dict
-    designs: list
-    metrics: list
+    warm: dict[str, np.ndarray]
+    objectives: tuple[float, ...]
+    reference: dict[StateKey, float]
+    reference_stored: dict[StateKey, Stored]
+    designs: tuple[np.ndarray, ...]
+    metrics: tuple[dict, ...]
     done: bool = False
 
 
-def evolving(setup: DesignSetup, st: LoopState) -> bool:
-    """Iteration ``st`` is past the reference (0) and its target area is not yet A*."""
-    return st.iteration > 0 and st.target != setup.params.target_area
+@dataclass(frozen=True)
+class Solved:
+    """Step 1's result: the equilibria of every state for the iteration's design.
+
+    keys : StateKey per state;  states : SimState per state;  results : StateResult per
+    state;  options : the solver options used;  coarse : solved to the evolution tolerance;
+    unconverged : names of the states that did not converge;  energy : {StateKey: J stored
+    in the reinforced faces (and clutches)};  stored : {StateKey: Stored};  alpha : {StateKey:
+    (m,) element sensitivities}.
+    """
+
+    keys: list[StateKey]
+    states: list[SimState]
+    results: list[StateResult]
+    options: SolverOptions
+    coarse: bool
+    unconverged: list[str]
+    energy: dict[StateKey, float]
+    stored: dict[StateKey, Stored]
+    alpha: dict[StateKey, np.ndarray]
 
 
 def initial_state(setup: DesignSetup) -> LoopState:
-    m = setup.model.n_faces
-    return LoopState(0, np.ones(m), 1.0, None, {}, [], {}, {}, [], [])
+    """Iteration 0: the fully reinforced garment."""
+    return LoopState(0, np.ones(setup.model.n_faces), 1.0, None, {}, (), {}, {}, (), ())
 
 
-def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
-    """Run one BESO iteration in place on ``st`` (and return it)."""
-    from kgarment.sim import log_stiffness_derivative, solve_states
-
-    t0 = time.time()
+def solve(setup: DesignSetup, st: LoopState) -> Solved:
+    """Step 1: solve every state for ``st.design``, warm started."""
     keyed = setup.states()
     states = [s for _, s in keyed]
-    warm = [st.warm.get(s.name) for s in states]
-    opts = setup.options(st)
-    coarse = opts is not setup.solver
-    results = solve_states(setup.model, st.design, states, warm_start=warm, options=opts)
-    bad = [r.name for r in results if not r.converged]
+    opts = setup.options(st.iteration, st.target)
+    results = solve_states(setup.model, st.design, states, warm_start=[st.warm.get(s.name) for s in states],
+                           options=opts)
     factor = log_stiffness_derivative(st.design, setup.model.preset) / setup.model.preset.penal
     alpha, energy, stored = {}, {}, {}
     for (key, _), r in zip(keyed, results):
@@ -157,14 +126,19 @@ def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
         s = Stored.of(r, setup.objective != "passive")
         stored[key] = s
         energy[key] = float(s.face_energy[st.design > 0.5].sum() + s.clutch_energy)
-    if st.iteration == 0:
-        st.reference = dict(energy)
-        st.reference_stored = dict(stored)
-    motions = list(setup.motions)
-    raw = combine_sensitivities(setup.objective, alpha, motions)
-    filt = setup.filter_matrix @ raw
+    return Solved([k for k, _ in keyed], states, results, opts, opts is not setup.solver,
+                  [r.name for r in results if not r.converged], energy, stored, alpha)
+
+
+def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved) -> np.ndarray:
+    """Step 2: (m,) filtered sensitivities of this iteration (higher = more useful as
+    reinforcement): combined by the objective, filtered, averaged with the previous
+    iteration's; the previous ones when a state did not converge (not twice in a row);
+    protected faces on top."""
+    filt = setup.filter_matrix @ combine_sensitivities(setup.objective, solved.alpha, list(setup.motions))
     if setup.params.history and st.alpha_prev is not None:
         filt = 0.5 * (filt + st.alpha_prev)
+    bad = solved.unconverged
     repeated = bool(st.metrics) and bool(st.metrics[-1]["unconverged_states"])
     if bad and st.alpha_prev is not None and not repeated:
         # an unconverged state's energies are not an equilibrium's: never used silently.
@@ -178,50 +152,75 @@ def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
         log.warning("iteration %d: %s did not converge again; using its sensitivities", st.iteration, ", ".join(bad))
     if setup.protected is not None:
         filt = np.where(setup.protected, filt.max() + 1.0, filt)
-    obj = objective_value(setup.objective, energy, st.reference, motions)
-    # NaN: no convergence judged on it (unconverged, or solved to the evolution tolerance)
-    st.objectives.append(obj if not (bad or coarse) else float("nan"))
-    areas = setup.areas
-    frac = float(areas[st.design > 0.5].sum() / areas.sum())
-    rho = {f"{k[0]}:{k[1]}": relative_energy_density(st.design, areas, stored[k], st.reference_stored[k],
-                                                    setup.clutch_area()) for k in stored}
-    links = setup.end_faces
-    ends = clutch_end_support(st.design, links)
+    return filt
+
+
+def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: dict[StateKey, float],
+                reference_stored: dict[StateKey, Stored]) -> dict:
+    """Step 3: the metrics of this iteration (``seconds`` is filled in by :func:`iterate`)."""
+    areas, design = setup.areas, st.design
+    frac = float(areas[design > 0.5].sum() / areas.sum())
+    obj = objective_value(setup.objective, solved.energy, reference, list(setup.motions))
+    ends = clutch_end_support(design, setup.end_faces)
+    faces = setup.model.garment_faces
     row = {
         "iteration": st.iteration, "area": frac, "target": st.target, "objective": obj,
-        "islands": islands(setup.model.garment_faces, st.design, adjacency=setup.adjacency),
-        "islands_with_clutches": islands(setup.model.garment_faces, st.design, links=links, adjacency=setup.adjacency),
+        "islands": islands(faces, design, adjacency=setup.adjacency),
+        "islands_with_clutches": islands(faces, design, links=setup.end_faces, adjacency=setup.adjacency),
         "clutch_ends_supported": int(sum(a + b for a, b in ends)), "clutch_ends": 2 * len(ends),
-        "unconverged_states": ";".join(bad), "seconds": 0.0,
-        "newton_iterations": int(sum(r.convergence.iterations for r in results)), "solver_tol": opts.tol,
+        "unconverged_states": ";".join(solved.unconverged), "seconds": 0.0,
+        "newton_iterations": int(sum(r.convergence.iterations for r in solved.results)),
+        "solver_tol": solved.options.tol,
     }
-    row.update({f"rho[{k}]": v for k, v in rho.items()})
-    row.update({f"energy[{k[0]}:{k[1]}]": v for k, v in energy.items()})
-    st.designs.append(st.design > 0.5)
-    reached = abs(frac - setup.params.target_area) <= 0.005 + setup.params.er * setup.params.target_area
-    st.done = converged(st.objectives, reached, setup.params) or st.iteration + 1 >= setup.params.max_iterations
-    if not st.done:
-        st.target = next_target(st.target, setup.params)
-        st.design = update_design(st.design, filt, areas, st.target, setup.params)
+    row.update({f"rho[{k[0]}:{k[1]}]": relative_energy_density(design, areas, solved.stored[k], reference_stored[k],
+                                                               setup.clutch_area) for k in solved.stored})
+    row.update({f"energy[{k[0]}:{k[1]}]": v for k, v in solved.energy.items()})
+    return row
+
+
+def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray, row: dict,
+            reference: dict[StateKey, float], reference_stored: dict[StateKey, Stored]) -> LoopState:
+    """Step 4: the next state: this iteration recorded; converged (or out of iterations), or
+    the design updated towards the next target area."""
+    p = setup.params
+    counts = not (solved.unconverged or solved.coarse)  # NaN: no convergence judged on it
+    objectives = st.objectives + (row["objective"] if counts else float("nan"),)
+    done = converged(list(objectives), p.reached(row["area"]), p) or st.iteration + 1 >= p.max_iterations
+    target, design = st.target, st.design
+    if not done:
+        target = next_target(st.target, p)
+        design = update_design(st.design, filt, setup.areas, target, p)
         if setup.protected is not None:
-            st.design[setup.protected] = 1.0
-    st.alpha_prev = filt
-    st.warm = {s.name: r.x if r.converged or r.convergence.residual <= WARM_MAX_RESIDUAL or s.name not in st.warm
-               else st.warm[s.name] for s, r in zip(states, results)}
-    st.iteration += 1
+            design[setup.protected] = 1.0
+    warm = {s.name: r.x if r.converged or r.convergence.residual <= WARM_MAX_RESIDUAL or s.name not in st.warm
+            else st.warm[s.name] for s, r in zip(solved.states, solved.results)}
+    return LoopState(st.iteration + 1, design, target, filt, warm, objectives, reference, reference_stored,
+                     st.designs + (st.design > 0.5,), st.metrics + (row,), done)
+
+
+def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
+    """One BESO iteration: solve, sensitivities, metrics, advance; returns the next state."""
+    t0 = time.time()
+    solved = solve(setup, st)
+    reference, reference_stored = (solved.energy, solved.stored) if st.iteration == 0 else \
+        (st.reference, st.reference_stored)
+    filt = sensitivities(setup, st, solved)
+    row = metrics_row(setup, st, solved, reference, reference_stored)
+    nxt = advance(setup, st, solved, filt, row, reference, reference_stored)
     row["seconds"] = time.time() - t0
-    st.metrics.append(row)
     log.debug("iteration %d: %s", row["iteration"], row)
-    return st
+    return nxt
 
 
 def run_loop(setup: DesignSetup, st: LoopState, checkpoint: Callable[[LoopState], None] | None = None,
-             progress: Callable[[dict], None] | None = None) -> LoopState:
-    """Iterate until converged or ``max_iterations``; ``checkpoint(st)`` after each iteration."""
+             progress: Callable[[LoopState], None] | None = None) -> LoopState:
+    """Iterate until converged or ``max_iterations``; after each iteration
+    ``checkpoint(state)`` then ``progress(state)`` (its last metrics row is
+    ``state.metrics[-1]``). Returns the final state."""
     while not st.done:
-        iterate(setup, st)
+        st = iterate(setup, st)
         if checkpoint is not None:
             checkpoint(st)
         if progress is not None:
-            progress(st.metrics[-1])
+            progress(st)
     return st

@@ -11,8 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from kgarment.errors import unknown
-
-OBJECTIVES = ("active", "passive", "compliance")
+from kgarment.problem.spec import OBJECTIVE_NAMES as OBJECTIVES
 
 
 def states_needed(kind: str) -> tuple[str, ...]:

@@ -7,8 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.design.beso import design_values
 from kgarment.design.run import progress_plot
-from kgarment.paths import atomic_save_npz
+from kgarment.io import atomic_save_npz, atomic_write_bytes, atomic_write_text, write_ply
+from kgarment.render import render_design, render_scene
+from kgarment.sim import solve_states
 
 log = logging.getLogger(__name__)
 REINFORCED = (0.15, 0.20, 0.45, 1.0)
@@ -26,21 +29,17 @@ def write_design_mesh(path, vertices, faces, design) -> Path:
 
     mesh = trimesh.Trimesh(vertices, faces, process=False, face_colors=(design_colors(design) * 255).astype(np.uint8))
     mesh.face_attributes["design"] = np.asarray(design, dtype=np.float64)
-    path = Path(path)
-    path.write_bytes(trimesh.exchange.ply.export_ply(mesh, include_attributes=True))
-    path.with_suffix(".obj").write_text(trimesh.exchange.obj.export_obj(mesh, include_color=True))
+    path = atomic_write_bytes(path, trimesh.exchange.ply.export_ply(mesh, include_attributes=True))
+    atomic_write_text(path.with_suffix(".obj"), trimesh.exchange.obj.export_obj(mesh, include_color=True))
     return path
 
 
 def finish_run(run: Path, setup, st, body, garment, strips) -> list[Path]:
     """Final design (NPZ, PLY, OBJ), progress plot, and renders of the final design
     coloured by energy density for each motion and state. Returns the written paths."""
-    from kgarment.render import render_design, render_scene
-    from kgarment.sim import solve_states
-
     final = run / "final"
     final.mkdir(exist_ok=True)
-    design = np.where(st.designs[-1], 1.0, setup.params.x_min)
+    design = design_values(st.designs[-1])
     paths = [progress_plot(run, st.metrics)]
     atomic_save_npz(final / "design.npz", design=design, faces=garment.faces, rest_vertices=garment.rest_vertices,
                     iteration=np.array(len(st.designs) - 1))
@@ -62,4 +61,25 @@ def finish_run(run: Path, setup, st, body, garment, strips) -> list[Path]:
                                   clutches=[(x, c.faces) for c, x in zip(setup.model.clutches, cx)],
                                   clutch_activation=act, value_label="energy density (J/m^2)",
                                   title=f"{garment.name}: {key[0]}, clutches {key[1]}"))
+    return paths
+
+
+def write_equilibrium(out: Path, stem: str, body_vertices: np.ndarray, body_faces: np.ndarray, model, result,
+                      activation, title: str) -> list[Path]:
+    """One equilibrium as files: ``stem.ply`` (garment, per-face energy density J/m^2),
+    ``stem_clutch_<name>.ply`` per clutch, and ``stem.png`` coloured by energy density.
+
+    body_vertices : (nb, 3) the posed body, m;  body_faces : (mb, 3);  model : SimModel;
+    result : its StateResult;  activation : (K,) clutch activation in [0, 1].
+    """
+    out = Path(out)
+    gx, cx = model.split(result.x)
+    paths = [write_ply(out / f"{stem}.ply", gx, model.garment_faces, {"energy_density": result.garment_density})]
+    for c, (strip, x) in enumerate(zip(model.clutches, cx)):
+        paths.append(write_ply(out / f"{stem}_clutch_{strip.name}.ply", x, strip.faces,
+                               {"energy_density": result.clutch_density[c]}))
+    paths.append(render_scene(out / f"{stem}.png", body_vertices, body_faces, gx, model.garment_faces,
+                              face_values=result.garment_density,
+                              clutches=[(x, s.faces) for s, x in zip(model.clutches, cx)],
+                              clutch_activation=activation, value_label="energy density (J/m^2)", title=title))
     return paths

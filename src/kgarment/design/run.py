@@ -18,22 +18,97 @@ import io
 import json
 import os
 import shutil
-import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from kgarment.design.beso import design_values
 from kgarment.design.loop import LoopState
+from kgarment.design.metrics import Stored
 from kgarment.errors import KgarmentError
-from kgarment.paths import atomic_save_npz
+from kgarment.io import atomic_save_npz, atomic_write_text
 
 
-def atomic_write_text(path: Path, text: str) -> None:
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
+@dataclass(frozen=True)
+class DesignSource:
+    """Where a design comes from: a run folder (its final design, or iteration
+    ``iteration``) or a design file (.npy, .npz with a ``design`` array, .txt)."""
+
+    run: Path | None = None
+    iteration: int | None = None
+    file: Path | None = None
+
+    def __str__(self) -> str:
+        if self.run is None:
+            return str(self.file)
+        return f"{self.run}@{self.iteration}" if self.iteration is not None else str(self.run)
+
+
+def parse_design_source(text: str, run_required: bool = False) -> DesignSource:
+    """'RUN' (its final design), 'RUN@K' (iteration K) or a design file path.
+
+    A folder must be a run folder (hold problem.toml); ``run_required`` refuses files."""
+    run, at, it = str(text).partition("@")
+    path = Path(run)
+    if path.is_dir():
+        if not (path / "problem.toml").is_file():
+            raise KgarmentError(f"{path} is not a run folder (no problem.toml); give RUN or RUN@ITERATION")
+        if at and not it.isdigit():
+            raise KgarmentError(f"iteration {it!r} in {text!r} must be a number")
+        return DesignSource(run=path, iteration=int(it) if at else None)
+    if run_required or at:
+        raise KgarmentError(f"{text!r} is not a run folder; give RUN or RUN@ITERATION")
+    if not path.is_file():
+        raise KgarmentError(f"{text!r} is neither a run folder (RUN or RUN@ITERATION) nor a design file")
+    return DesignSource(file=path)
+
+
+def load_design(source: DesignSource | str | os.PathLike, n_faces: int) -> np.ndarray:
+    """The design (n_faces,) in [x_min, 1] of a :class:`DesignSource` (or its text or path)."""
+    src = source if isinstance(source, DesignSource) else parse_design_source(str(source))
+    if src.run is not None:
+        hist = load_design_history(src.run)
+        k = len(hist) - 1 if src.iteration is None else src.iteration
+        if not 0 <= k < len(hist):
+            raise KgarmentError(f"{src.run} has iterations 0..{len(hist) - 1}; asked for {k}")
+        if hist.shape[1] != n_faces:
+            raise KgarmentError(f"the design in {src.run} has {hist.shape[1]} faces, the garment {n_faces}")
+        return design_values(hist[k])
+    path = src.file
+    try:
+        if path.suffix == ".npz":
+            with np.load(path) as z:
+                d = z["design"] if "design" in z.files else z[z.files[0]]
+        elif path.suffix == ".npy":
+            d = np.load(path)
+        else:
+            d = np.loadtxt(path)
+    except Exception as exc:
+        raise KgarmentError(f"cannot read design {path}: {exc}") from None
+    d = np.asarray(d, dtype=np.float64).reshape(-1)
+    if d.shape != (n_faces,):
+        raise KgarmentError(f"design {path} has {d.size} values, the garment has {n_faces} faces")
+    if not np.all((d > 0) & (d <= 1)):
+        raise KgarmentError(f"design {path}: values must lie in (0, 1]")
+    return d
+
+
+def iteration_of(source: DesignSource) -> int:
+    """The iteration a run source names (its last one when none is given)."""
+    n = len(load_design_history(source.run))
+    return n - 1 if source.iteration is None else source.iteration
+
+
+def run_status(run) -> str:
+    """"new" (no checkpoint), "unfinished" or "finished" (final design written)."""
+    run = Path(run)
+    ck = run / "checkpoint.npz"
+    if not ck.is_file():
+        return "new"
+    with np.load(ck) as z:
+        done = bool(z["done"])
+    return "finished" if done and (run / "final" / "design.npz").is_file() else "unfinished"
 
 
 def prepare_run_folder(path, force: bool = False, resume: bool = False) -> Path:
@@ -76,8 +151,6 @@ def save_checkpoint(run: Path, st: LoopState) -> None:
 
 
 def load_checkpoint(run: Path) -> LoopState:
-    from kgarment.design.metrics import Stored
-
     with np.load(run / "checkpoint.npz") as z:
         names = [str(n) for n in z["warm_names"]]
         keys = [tuple(str(k).split("|")) for k in z["ref_keys"]]
@@ -87,11 +160,11 @@ def load_checkpoint(run: Path) -> LoopState:
             iteration=int(z["iteration"]), design=z["design"].copy(), target=float(z["target"]),
             alpha_prev=z["alpha_prev"].copy() if bool(z["has_alpha"]) else None,
             warm={n: z[f"warm_{i}"].copy() for i, n in enumerate(names)},
-            objectives=[float(v) for v in z["objectives"]],
+            objectives=tuple(float(v) for v in z["objectives"]),
             reference={k: float(v) for k, v in zip(keys, z["ref_values"])},
             reference_stored={k: Stored(z[f"ref_faces_{i}"].copy(), float(c))
                               for i, (k, c) in enumerate(zip(keys, z["ref_clutch"]))},
-            designs=designs, metrics=json.loads(str(z["metrics"])), done=bool(z["done"]),
+            designs=tuple(designs), metrics=tuple(json.loads(str(z["metrics"]))), done=bool(z["done"]),
         )
 
 
@@ -105,16 +178,16 @@ def load_design_history(run) -> np.ndarray:
         return np.array([np.unpackbits(r)[:m].astype(bool) for r in z["designs"]])
 
 
-def write_metrics(run: Path, rows: list[dict]) -> None:
+def write_metrics(run: Path, rows) -> None:
     if not rows:
         return
     cols = list(dict.fromkeys(k for r in rows for k in r))
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=cols)
     w.writeheader()
-    w.writerows(rows)
+    w.writerows(list(rows))
     atomic_write_text(run / "metrics.csv", buf.getvalue())
-    atomic_write_text(run / "metrics.json", json.dumps(rows, indent=1))
+    atomic_write_text(run / "metrics.json", json.dumps(list(rows), indent=1))
 
 
 def progress_plot(run: Path, rows: list[dict]) -> Path:

@@ -26,6 +26,7 @@ from kgarment.fabricate.patterns import Patch, PatternOptions, PatternSet, Seam,
 from kgarment.fabricate.pipeline import (
     Fabrication,
     FabricationOptions,
+    check_design_mesh,
     fabricate,
     write_fabrication,
 )
@@ -43,6 +44,7 @@ __all__ = [
     "Piece",
     "Seam",
     "Sheet",
+    "check_design_mesh",
     "clean_design",
     "fabricate",
     "flatten",

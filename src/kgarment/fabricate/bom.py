@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.fabricate.outline import polygon_area
+
 BUTTONS_PER_CLUTCH = 6  # 3 anchors at each end, one snap fastener each
 
 
@@ -66,8 +68,6 @@ def write_bom(fab, out: Path) -> list[Path]:
 
 def patch_rows(fab) -> list[dict]:
     """Per patch: areas, distortion, outline area after smoothing (all SI and %)."""
-    from kgarment.fabricate.outline import polygon_area
-
     rows = []
     for p, piece in zip(fab.patterns.patches, fab.sheet.pieces, strict=True):
         f = p.flat
@@ -84,7 +84,7 @@ def patch_rows(fab) -> list[dict]:
 
 
 def rho_rows(before: list[dict], after: list[dict]) -> list[dict]:
-    """rho before and after the clean-up for each motion and state (``evaluate_design`` rows)."""
+    """rho before and after the clean-up for each motion and state (``StateEvaluation.row()`` dicts)."""
     return [{"motion": b["motion"], "state": b["state"], "rho_before": b["rho"], "rho_after": a["rho"],
              "change_pct": 100 * (a["rho"] / b["rho"] - 1) if b["rho"] else float("nan"),
              "converged": bool(b["converged"] and a["converged"])} for b, a in zip(before, after, strict=True)]

@@ -25,7 +25,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from kgarment.errors import KgarmentError
-from kgarment.garment.topology import face_adjacency, triangle_areas
+from kgarment.garment.topology import boundary_edges, face_adjacency, triangle_areas
 
 log = logging.getLogger(__name__)
 
@@ -159,8 +159,6 @@ def near_boundary(vertices: np.ndarray, faces: np.ndarray, radius: float) -> np.
     """(m,) bool: faces whose centroid comes within ``radius`` (plus half its inradius) of
     the garment's boundary (sampled along every boundary edge). vertices (n, 3), faces (m, 3)."""
     from scipy.spatial import cKDTree
-
-    from kgarment.garment.topology import boundary_edges
 
     be = boundary_edges(faces)
     if not len(be):

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kgarment.errors import KgarmentError
-from kgarment.garment.topology import triangle_areas
+from kgarment.garment.topology import boundary_loops, triangle_areas
 
 log = logging.getLogger(__name__)
 METHODS = ("arap", "lscm")
@@ -93,8 +93,6 @@ def triangle_frames(V: np.ndarray, F: np.ndarray):
 
 
 def _lscm(igl, V, F):
-    from kgarment.garment.topology import boundary_loops
-
     loops = boundary_loops(F)
     bnd = np.concatenate(loops) if loops else np.arange(len(V))
     d = np.linalg.norm(V[bnd][:, None] - V[bnd][None], axis=-1) if len(bnd) <= 2000 else None

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kgarment.fabricate.flatten import triangle_frames
+from kgarment.fabricate.flatten import face_jacobians, triangle_frames
 from kgarment.fabricate.outline import point_segment_distance, smooth_outline
 from kgarment.fabricate.patterns import PatternSet
 from kgarment.garment.topology import triangle_areas
@@ -82,8 +82,6 @@ def up_direction(V: np.ndarray, F: np.ndarray, uv: np.ndarray, up=(0.0, 0.0, 1.0
     """(2,) unit image of the 3D direction ``up`` in a flattening (area-weighted mean of its
     per-triangle images), or None where the patch is nearly level (``up`` is its normal).
     V (n, 3), F (f, 3), uv (n, 2)."""
-    from kgarment.fabricate.flatten import face_jacobians
-
     x, y = triangle_frames(V, F)
     u = np.asarray(up, float)
     local = np.stack([x @ u, y @ u], axis=1)  # (f, 2) up projected on each triangle

@@ -8,10 +8,16 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.design.beso import design_values
 from kgarment.errors import KgarmentError
+from kgarment.fabricate.bom import write_bom, write_report
 from kgarment.fabricate.cleanup import CleanupOptions, CleanupResult, clean_design
+from kgarment.fabricate.cutfiles import write_dxf, write_svg
+from kgarment.fabricate.export3d import face_patch_index, write_3d
 from kgarment.fabricate.layout import Sheet, layout_sheet
 from kgarment.fabricate.patterns import PatternOptions, PatternSet, make_patterns
+from kgarment.fabricate.preview import PAPERS, write_pdf
+from kgarment.io import atomic_save_npz
 
 log = logging.getLogger(__name__)
 
@@ -28,8 +34,6 @@ class FabricationOptions:
     paper: str = "a4"
 
     def __post_init__(self):
-        from kgarment.fabricate.preview import PAPERS
-
         if self.paper not in PAPERS:
             raise KgarmentError(f"paper {self.paper!r}; allowed: {', '.join(PAPERS)}")
         if not self.sheet_width > 0:
@@ -56,9 +60,24 @@ class Fabrication:
     @property
     def clean_design(self) -> np.ndarray:
         """(m,) float: the cleaned design in the design loop's values (1 or 1e-3)."""
-        from kgarment.design.beso import X_MIN
+        return design_values(self.cleanup.after)
 
-        return np.where(self.cleanup.after, 1.0, X_MIN)
+
+def check_design_mesh(path, garment) -> None:
+    """A design ``.npz`` that stores its mesh (``faces``, ``rest_vertices``) must have been
+    made for this garment (other files carry no mesh and pass)."""
+    path = Path(path)
+    if path.suffix != ".npz" or not path.is_file():
+        return
+    with np.load(path) as z:
+        faces = z["faces"] if "faces" in z.files else None
+        rest = z["rest_vertices"] if "rest_vertices" in z.files else None
+    if faces is not None and (faces.shape != garment.faces.shape or not np.array_equal(faces, garment.faces)):
+        raise KgarmentError(f"{path} was made for another garment mesh ({len(faces)} faces) than the "
+                            f"problem's {garment.name} ({garment.n_faces} faces)")
+    if rest is not None and rest.shape == garment.rest_vertices.shape \
+            and np.abs(rest - garment.rest_vertices).max() > 1e-6:
+        raise KgarmentError(f"{path} was made on another body (its garment's rest shape differs)")
 
 
 def fabricate(garment, strips, design: np.ndarray, options: FabricationOptions = FabricationOptions(),
@@ -82,21 +101,14 @@ def fabricate(garment, strips, design: np.ndarray, options: FabricationOptions =
 def write_fabrication(fab: Fabrication, out, evaluation=None) -> list[Path]:
     """Write every file into the folder ``out`` (created; existing files are replaced):
     cut_patterns.svg/.dxf/.pdf, design_clean.glb/.obj/.ply/.npz, bom.md/.csv, report.md/.json.
-    evaluation : (rows before, rows after) from ``evaluate_design``, or None."""
-    from kgarment.fabricate.bom import write_bom, write_report
-    from kgarment.fabricate.cutfiles import write_dxf, write_svg
-    from kgarment.fabricate.export3d import write_3d
-    from kgarment.fabricate.preview import write_pdf
-    from kgarment.paths import atomic_save_npz
-
+    evaluation : (rows before, rows after), each ``StateEvaluation.row()`` dicts of the one
+    design evaluator (``kgarment.design.Evaluator``), or None."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     g = fab.garment
     files = [write_svg(fab.sheet, out / "cut_patterns.svg"), write_dxf(fab.sheet, out / "cut_patterns.dxf"),
              write_pdf(fab.sheet, out / "cut_patterns.pdf", fab.options.paper)]
     files += write_3d(g.rest_vertices, g.faces, fab.patterns, fab.strips, out / "design_clean")
-    from kgarment.fabricate.export3d import face_patch_index
-
     atomic_save_npz(out / "design_clean.npz", design=fab.clean_design, original=fab.design, faces=g.faces,
                     rest_vertices=g.rest_vertices, patch=face_patch_index(g.n_faces, fab.patterns))
     files.append(out / "design_clean.npz")

@@ -15,7 +15,11 @@ from kgarment.body.model import Body
 from kgarment.errors import KgarmentError, unknown
 from kgarment.garment.templates import GarmentTemplate, builtin_templates
 from kgarment.garment.topology import (
-    boundary_loops, check_manifold, clean_face_mask, midpoint_subdivide, triangle_areas,
+    boundary_loops,
+    check_manifold,
+    clean_face_mask,
+    midpoint_subdivide,
+    triangle_areas,
 )
 
 ALIASES = {"arm_sleeve": "arm_sleeve.right", "knee_sleeve": "knee_sleeve.right"}

@@ -12,6 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.body.model import vertex_normals
+from kgarment.errors import unknown
+
 # view name -> (direction from the scene towards the camera, screen up)
 VIEWS = {
     "front": ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
@@ -48,8 +51,6 @@ class Layer:
 
 def _view_frame(view: str):
     if view not in VIEWS:
-        from kgarment.errors import unknown
-
         raise unknown("view", view, VIEWS)
     to_cam, up = (np.asarray(a, dtype=float) for a in VIEWS[view])
     to_cam /= np.linalg.norm(to_cam)
@@ -66,8 +67,6 @@ def project(layers: list[Layer], view: str):
     for layer in layers:
         v = np.asarray(layer.vertices, dtype=float)
         if layer.offset:
-            from kgarment.body.model import vertex_normals
-
             v = v + layer.offset * vertex_normals(v, layer.faces)
         tri = v[layer.faces]  # (m, 3, 3)
         n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])

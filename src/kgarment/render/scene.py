@@ -76,3 +76,21 @@ def render_design(path, body_vertices, body_faces, garment_vertices, garment_fac
                         face_values=(np.asarray(design) > 0.5).astype(float), clutches=clutches, cmap="Blues",
                         vmin=-0.3, vmax=1.2, value_label="reinforced", categories=DESIGN_LEGEND, title=title,
                         height_px=height_px)
+
+
+def render_poses(out, body, garment, strips, motions, views=STANDARD_VIEWS) -> list[Path]:
+    """One PNG per pose (rest and each of ``motions``) of the skin-tight garment on the
+    posed body with its attachments and clutches: ``out/<garment>_<pose>.png``.
+
+    body : kgarment.body.Body;  garment : kgarment.garment.Garment;  strips : ClutchStrip list.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for motion in ("rest",) + tuple(motions):
+        gv = garment.vertices(motion)
+        cl = [(c.bound_positions(gv, garment.faces), c.faces) for c in strips]
+        paths.append(render_scene(out / f"{garment.name}_{motion}.png", body.vertices(motion), body.faces, gv,
+                                  garment.faces, attached=garment.attached, views=views, clutches=cl,
+                                  title=f"{garment.name} (subdivision {garment.subdivision}) - {motion}"))
+    return paths

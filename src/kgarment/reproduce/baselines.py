@@ -19,7 +19,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
-from kgarment.design.beso import X_MIN, one_ring_filter
+from kgarment.constants import X_MIN
+from kgarment.design.beso import one_ring_filter
 from kgarment.garment.topology import face_adjacency, triangle_areas
 
 

@@ -1,10 +1,10 @@
-"""Evaluating designs on a problem: rho ON/OFF per motion, islands, clutch junctions.
+"""Evaluations of the reproduction, cached on disk.
 
-An :class:`Evaluator` builds a problem once (body, garment, clutches, simulation model),
-solves the fully reinforced garment in every state once (the reference of rho), and then
-evaluates any design of that garment (the starts: :func:`kgarment.design.driver.design_equilibria`).
-Results are cached in a JSON file keyed by the problem and a hash of the design, so an interrupted
-``reproduce`` picks up where it stopped.
+:class:`CachedEvaluator` builds an experiment's problem once (body, garment, clutches)
+and evaluates designs with the one design evaluator
+(:class:`kgarment.design.Evaluator`), always with the clutches ON and OFF whatever the
+problem's objective.  Results are cached in a JSON file keyed by the problem and a hash of
+the design, so an interrupted ``reproduce`` picks up where it stopped.
 """
 
 from __future__ import annotations
@@ -15,6 +15,10 @@ import logging
 from pathlib import Path
 
 import numpy as np
+
+from kgarment.design import Evaluator
+from kgarment.io import atomic_write_text
+from kgarment.problem import Problem, build_body, build_clutches, build_garment
 
 log = logging.getLogger(__name__)
 
@@ -30,8 +34,6 @@ class EvaluationCache:
         return self.data.get(key)
 
     def put(self, key: str, value) -> None:
-        from kgarment.design.run import atomic_write_text
-
         self.data[key] = value
         atomic_write_text(self.path, json.dumps(self.data, indent=1))
 
@@ -41,85 +43,40 @@ def design_key(design: np.ndarray) -> str:
     return hashlib.sha1(np.packbits(np.asarray(design) > 0.5).tobytes()).hexdigest()[:16]
 
 
-class Evaluator:
+class CachedEvaluator:
     """Evaluates designs on ``problem``'s motions with its clutches ON and OFF.
 
-    problem : kgarment.problem.Problem (its objective is ignored: states are ON and OFF);
-    name : the key of this problem in the cache;  cache : EvaluationCache or None.
+    problem : Problem (its objective is ignored: states are ON and OFF);  name : the key of
+    this problem in the cache;  cache : EvaluationCache or None.  ``body``, ``garment``,
+    ``strips`` and ``setup`` are the built problem (for renders and baselines).
     """
 
-    def __init__(self, problem, name: str, cache: EvaluationCache | None = None, device: str = "cpu"):
-        import dataclasses
-
-        from kgarment.design.driver import build_setup
-        from kgarment.problem import build_body, build_clutches, build_garment
-
-        self.problem = dataclasses.replace(problem, design=dataclasses.replace(problem.design, objective="active"))
+    def __init__(self, problem: Problem, name: str, cache: EvaluationCache | None = None, device: str = "cpu"):
         self.name = name
         self.cache = cache
-        self.body = build_body(self.problem)
-        self.garment = build_garment(self.problem, self.body)
-        self.strips = build_clutches(self.problem, self.body, self.garment)
-        self.setup = build_setup(self.problem, self.body, self.garment, self.strips, device, evaluation=True)
-        self.keyed = self.setup.states()
-        self._full = None
+        self.body = build_body(problem)
+        self.garment = build_garment(problem, self.body)
+        self.strips = build_clutches(problem, self.body, self.garment)
+        self.evaluator = Evaluator.from_problem(problem, body=self.body, garment=self.garment, strips=self.strips,
+                                                device=device, objective="active")
+        self.setup = self.evaluator.setup
 
     @property
     def motions(self) -> list[str]:
-        return list(self.setup.motions)
+        return self.evaluator.motions
 
     @property
-    def n_faces(self) -> int:
-        return self.garment.n_faces
-
-    def full(self):
-        """The fully reinforced garment's equilibria (solved once)."""
-        if self._full is None:
-            from kgarment.sim import solve_states
-
-            self._full = solve_states(self.setup.model, np.ones(self.n_faces), [s for _, s in self.keyed],
-                                      options=self.setup.solver)
-        return self._full
+    def n_states(self) -> int:
+        return len(self.setup.states())
 
     def evaluate(self, design: np.ndarray, label: str = "") -> dict:
-        """rho ON/OFF per motion and the structural metrics of ``design`` (m,).
-
-        Returns {"rho": {motion: {"on": float, "off": float}}, "islands": int,
-        "islands_with_clutches": int, "clutch_ends_supported": int, "clutch_ends": int,
-        "area": float (share of the rest area), "converged": bool, "label": str}.
-        """
-        from kgarment.design.driver import design_equilibria
-        from kgarment.design.metrics import (
-            Stored,
-            clutch_end_support,
-            islands,
-            relative_energy_density,
-        )
-
+        """rho ON/OFF per motion and the structural metrics of ``design`` (m,):
+        :meth:`kgarment.design.DesignEvaluation.to_json` with ``label``."""
         design = np.asarray(design, dtype=np.float64)
-        if len(design) != self.n_faces:
-            raise ValueError(f"design has {len(design)} faces, the garment of {self.name} {self.n_faces}")
         key = f"{self.name}|{design_key(design)}"
         if self.cache is not None and (hit := self.cache.get(key)) is not None:
             return hit
-        full = self.full()
-        mine = design_equilibria(self.setup, design, self.full)
-        setup = self.setup
-        rho: dict = {}
-        for ((motion, state), _), rf, rd in zip(self.keyed, full, mine):
-            sf, sd = Stored.of(rf), Stored.of(rd)
-            rho.setdefault(motion, {})[state] = relative_energy_density(design, setup.areas, sd, sf,
-                                                                        setup.clutch_area())
-        ends = clutch_end_support(design, setup.end_faces)
-        faces = self.garment.faces
-        out = {
-            "label": label, "rho": rho,
-            "islands": islands(faces, design, adjacency=setup.adjacency),
-            "islands_with_clutches": islands(faces, design, links=setup.end_faces, adjacency=setup.adjacency),
-            "clutch_ends_supported": int(sum(a + b for a, b in ends)), "clutch_ends": 2 * len(ends),
-            "area": float(setup.areas[design > 0.5].sum() / setup.areas.sum()),
-            "converged": bool(all(r.converged for r in full) and all(r.converged for r in mine)),
-        }
+        out = {"label": label, **self.evaluator.evaluate(design).to_json()}
         if self.cache is not None:
             self.cache.put(key, out)
         return out

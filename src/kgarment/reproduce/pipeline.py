@@ -20,10 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from kgarment.design.beso import X_MIN
+from kgarment.design import design_values
+from kgarment.render import render_design
 from kgarment.reproduce.baselines import line_design, random_design
-from kgarment.reproduce.evaluate import EvaluationCache, Evaluator
+from kgarment.reproduce.evaluate import CachedEvaluator, EvaluationCache
 from kgarment.reproduce.experiments import (
+    BY_NAME,
     MULTI_OF_GROUP,
     RESOLUTIONS,
     Experiment,
@@ -35,9 +37,7 @@ from kgarment.reproduce.experiments import (
 log = logging.getLogger(__name__)
 
 
-def _render_design(path: Path, ev: Evaluator, design: np.ndarray, title: str) -> str:
-    from kgarment.render import render_design
-
+def _render_design(path: Path, ev: CachedEvaluator, design: np.ndarray, title: str) -> str:
     g = ev.garment
     bv, bf = ev.body.rest_vertices, ev.body.faces
     lo, hi = g.rest_vertices.min(0) - 0.05, g.rest_vertices.max(0) + 0.05  # frame the garment, not the body
@@ -67,8 +67,8 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     ours = design_run(problem, out / "runs" / exp.name, device, progress)
     comp = design_run(experiment_problem(exp, res, "compliance"), out / "runs" / f"{exp.name}-compliance",
                       device, progress)
-    ev = Evaluator(problem, f"{exp.name}@{res.name}", cache, device)
-    budget = problem.design.target_area
+    ev = CachedEvaluator(problem, f"{exp.name}@{res.name}", cache, device)
+    budget = problem.design.beso.target_area
     g = ev.garment
     designs = {
         "ours": ours.design,
@@ -80,7 +80,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     entry = {"name": exp.name, "title": exp.title, "group": exp.group, "multi": exp.multi,
              "paper": {m: list(v) for m, v in exp.paper.items()}, "budget": budget,
              "garment": g.name, "faces": int(g.n_faces), "clutches": len(ev.strips), "motions": ev.motions,
-             "states": len(ev.keyed), "run": _run_summary(ours), "compliance_run": _run_summary(comp),
+             "states": ev.n_states, "run": _run_summary(ours), "compliance_run": _run_summary(comp),
              "evaluations": {}, "images": {}}
     for kind, d in designs.items():
         log.info("%s: evaluating the %s design", exp.name, kind)
@@ -102,19 +102,17 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
 def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationCache, device: str) -> dict | None:
     """The group's designs evaluated on its multi-motion problem: rows = motions evaluated
     on, columns = the motion each design was optimised for, and "all" (the multi design)."""
-    from kgarment.reproduce.experiments import BY_NAME
-
     multi = MULTI_OF_GROUP.get(group)
     if multi is None or multi not in results:
         return None
     singles = [e for e in results.values() if e["group"] == group and not e["multi"]]
     if not singles:
         return None
-    ev = Evaluator(experiment_problem(BY_NAME[multi], res), f"{multi}@{res.name}", cache, device)
+    ev = CachedEvaluator(experiment_problem(BY_NAME[multi], res), f"{multi}@{res.name}", cache, device)
     columns = {}
     for e in singles:
         with np.load(out / "designs" / f"{e['name']}.npz") as z:
-            design = np.where(z["ours"], 1.0, X_MIN)
+            design = design_values(z["ours"])
         (motion,) = e["motions"]
         columns[motion] = ev.evaluate(design, f"{e['name']} on {multi}")["rho"]
     columns["all"] = results[multi]["evaluations"]["ours"]["rho"]

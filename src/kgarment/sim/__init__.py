@@ -30,7 +30,14 @@ from kgarment.sim.materials import (
     log_stiffness_derivative,
 )
 from kgarment.sim.membrane import TriangleElements
-from kgarment.sim.model import Motion, PenaltyParams, SimModel, SimState, build_model
+from kgarment.sim.model import (
+    Motion,
+    PenaltyParams,
+    SimModel,
+    SimState,
+    build_model,
+    garment_motions,
+)
 from kgarment.sim.newton import newton_solve
 from kgarment.sim.options import Convergence, SolverOptions
 from kgarment.sim.solve import (
@@ -42,11 +49,38 @@ from kgarment.sim.solve import (
 )
 
 __all__ = [
-    "PAPER", "PRESETS", "REFERENCE", "TERMS",
-    "Convergence", "ConvergenceError", "HessianPattern", "ImplicitBody", "MaterialPreset",
-    "Motion", "NeighborCache", "PenaltyParams", "SimModel", "SimState", "SimulationError",
-    "SolverOptions", "SparseCholesky", "StateProblem", "StateResult", "TriangleElements",
-    "build_model", "clutch_material", "evaluate_state", "garment_material", "get_preset",
-    "lame_plane_stress", "lbfgs_solve", "log_stiffness_derivative", "newton_solve",
-    "prepare_state", "solve_states", "state_materials", "update_neighbors",
+    "PAPER",
+    "PRESETS",
+    "REFERENCE",
+    "TERMS",
+    "Convergence",
+    "ConvergenceError",
+    "HessianPattern",
+    "ImplicitBody",
+    "MaterialPreset",
+    "Motion",
+    "NeighborCache",
+    "PenaltyParams",
+    "SimModel",
+    "SimState",
+    "SimulationError",
+    "SolverOptions",
+    "SparseCholesky",
+    "StateProblem",
+    "StateResult",
+    "TriangleElements",
+    "build_model",
+    "clutch_material",
+    "evaluate_state",
+    "garment_material",
+    "garment_motions",
+    "get_preset",
+    "lame_plane_stress",
+    "lbfgs_solve",
+    "log_stiffness_derivative",
+    "newton_solve",
+    "prepare_state",
+    "solve_states",
+    "state_materials",
+    "update_neighbors",
 ]

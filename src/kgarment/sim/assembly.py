@@ -46,6 +46,8 @@ from typing import ClassVar
 import numpy as np
 import scipy.sparse as sp
 
+from kgarment.sim import pardiso
+
 log = logging.getLogger(__name__)
 
 try:  # pragma: no cover - depends on the environment
@@ -198,8 +200,6 @@ class SparseCholesky:
     def choose_mode(mode: str, use_cholmod: bool = True) -> str:
         """The factorisation ``mode`` stands for in this environment (module doc).  Raises
         ValueError for "pardiso" without MKL."""
-        from kgarment.sim import pardiso
-
         if not use_cholmod or mode == "splu":
             return "splu"
         if mode == "auto":
@@ -224,9 +224,7 @@ class SparseCholesky:
         self._data = self._full = None
         self._C = self._Z = self._S = None  # Woodbury: C (n, a) sparse, Z = A^-1 C, S = cho_factor(I + C^T Z)
         if self.backend == "pardiso":
-            from kgarment.sim.pardiso import PardisoSolver
-
-            self._pd = PardisoSolver(pattern.indptr, pattern.indices)
+            self._pd = pardiso.PardisoSolver(pattern.indptr, pattern.indices)
         elif self.backend == "cholmod":
             if self.mode == "supernodal":
                 SparseCholesky.openmp_used = True

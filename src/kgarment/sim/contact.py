@@ -33,6 +33,7 @@ proportional to the penetration depth, micrometres at equilibrium) in projected 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -227,16 +228,34 @@ def imls_fast(p: torch.Tensor, bv, bn, bh, index, valid, nearest, order: int = 0
     return torch.from_numpy(f), torch.from_numpy(gf), torch.from_numpy(hf) if order == 2 else None
 
 
-def gather(bv, bn, bh, index, valid, nearest):
-    """Per-candidate quantities that stay fixed until the neighbour lists change:
-    ``(V, N, 1/h, |v|^2, n.v, valid, v0, n0)`` with V, N : (P, K, 3), the rest (P, K) and
-    v0, n0 : (P, 3) the nearest vertex (fallback plane).  Used by :func:`imls_value`."""
+class Candidates(NamedTuple):
+    """Per-candidate quantities of :func:`gather` (P query points, K candidates each).
+
+    V, N : (P, K, 3) candidate body vertices (m) and normals;  hinv : (P, K) 1/h, 1/m^2;
+    vv : (P, K) |v|^2, m^2;  nv : (P, K) n.v, m;  valid : (P, K) 1.0 for real candidates;
+    v0, n0 : (P, 3) the nearest vertex and its normal (the fallback plane).
+    """
+
+    V: torch.Tensor
+    N: torch.Tensor
+    hinv: torch.Tensor
+    vv: torch.Tensor
+    nv: torch.Tensor
+    valid: torch.Tensor
+    v0: torch.Tensor
+    n0: torch.Tensor
+
+
+def gather(bv, bn, bh, index, valid, nearest) -> Candidates:
+    """Per-candidate quantities that stay fixed until the neighbour lists change (used by
+    :func:`imls_value`); bv, bn : (nb, 3) body vertices and normals, bh : (nb,) supports,
+    index, valid : (P, K) candidate lists, nearest : (P,) nearest body vertex."""
     V, N = bv[index], bn[index]
-    return (V, N, 1.0 / bh[index], (V * V).sum(-1), (N * V).sum(-1), valid.to(bv.dtype),
-            bv[nearest], bn[nearest])
+    return Candidates(V, N, 1.0 / bh[index], (V * V).sum(-1), (N * V).sum(-1), valid.to(bv.dtype),
+                      bv[nearest], bn[nearest])
 
 
-def imls_value(p: torch.Tensor, pre) -> torch.Tensor:
+def imls_value(p: torch.Tensor, pre: Candidates) -> torch.Tensor:
     """f (P,) from :func:`gather`'s quantities, without forming the (P, K, 3) offsets:
     ``|p - v|^2 = |p|^2 - 2 p.v + |v|^2`` and ``n.(p - v) = n.p - n.v``."""
     if kernels.applies(p):

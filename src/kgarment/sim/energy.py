@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from kgarment.sim.contact import contact, gather, update_neighbors
+from kgarment.sim.contact import contact, gather, imls_fast, update_neighbors
 from kgarment.sim.materials import (
     check_design,
     clutch_material,
@@ -214,8 +214,6 @@ class StateProblem:
 
     def contact_linearization(self, x: torch.Tensor):
         """IMLS value f (N,) and gradient (N, 3) at every vertex (numpy)."""
-        from kgarment.sim.contact import imls_fast
-
         args = self._contact_args(x)
         f, gf, _ = imls_fast(x, *args, order=1)
         return f.cpu().numpy(), gf.cpu().numpy()

@@ -45,6 +45,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kgarment.constants import PENALTY, X_MIN
+
 
 @dataclass(frozen=True)
 class MaterialPreset:
@@ -60,8 +62,8 @@ class MaterialPreset:
     young_clutch_off: float
     thick_clutch_off: float
     poisson: float = 0.33
-    penal: float = 1.6
-    x_min: float = 0.001
+    penal: float = PENALTY
+    x_min: float = X_MIN
 
     @property
     def cloth_stiffness(self) -> float:

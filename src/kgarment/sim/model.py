@@ -205,6 +205,20 @@ class Motion:
                       attach_faces=af, attach_targets=at)
 
 
+def garment_motions(body, garment, names=None) -> dict[str, Motion]:
+    """{motion name: Motion} of a garment on its posed body: the skin-tight start, the
+    posed body's implicit surface and the attachment targets.
+
+    body : kgarment.body.Body posed in the motions;  garment : kgarment.garment.Garment on it
+    (its ``attached`` faces are held);  names : motions to build (default: every motion the
+    garment is posed in).
+    """
+    attached = np.flatnonzero(garment.attached)
+    return {m: Motion.create(m, garment.vertices(m), body.vertices(m), body.normals(m), attached,
+                             garment.attachment_targets(m), body.faces)
+            for m in (names or garment.motion_names)}
+
+
 @dataclass(frozen=True)
 class SimState:
     """A motion under one clutch activation pattern: activation (K,) in [0, 1]."""

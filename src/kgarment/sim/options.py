@@ -16,7 +16,8 @@ triangles (the relaxed energy is only C1 at l_max = 1) make the last decades lin
 Equilibria are not unique to better than about 1% in per-face energy density: solves
 converged to 1e-5 with different solver settings land up to 2.4% apart (a membrane without
 bending on a frictionless body has many nearly equal equilibria; ``benchmarks/accuracy.py``),
-so design iterations use 1e-3 (``kgarment.problem.SolverSpec``).
+so design iterations use 1e-3 (``kgarment.problem.SolverSpec``); every tolerance's value is in
+:mod:`kgarment.constants`.
 A single cloth-based force scale (``Y_cloth t_cloth L``) would demand displacements of
 1e-11 m inside the 1000x stiffer reinforced cloth of the ``paper`` preset -- below what
 the piecewise (slack / taut) energy lets any solver reach -- and add no accuracy.
@@ -25,6 +26,8 @@ the piecewise (slack / taut) energy lets any solver reach -- and add no accuracy
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+from kgarment.constants import MAX_NEWTON, SOLVER_TOL
 
 FACTORIZATIONS = ("auto", "pardiso", "simplicial", "supernodal", "splu")
 
@@ -65,8 +68,8 @@ class SolverOptions:
     """
 
     method: str = "newton"
-    tol: float = 1e-5
-    max_iter: int = 200
+    tol: float = SOLVER_TOL
+    max_iter: int = MAX_NEWTON
     lbfgs_max_iter: int = 50000
     projection: str = "analytic"
     exact_contact_hessian: bool = False

@@ -23,6 +23,10 @@ import atexit
 import multiprocessing as mp
 import signal
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+
+from kgarment.sim.assembly import SparseCholesky
+from kgarment.sim.serial import blas_threads, solve_serial
 
 _POOLS: dict[int, ProcessPoolExecutor] = {}
 _LAST_ITERATIONS: dict[str, int] = {}  # state name -> Newton iterations in the last solve (scheduling only)
@@ -31,8 +35,6 @@ _LAST_ITERATIONS: dict[str, int] = {}  # state name -> Newton iterations in the 
 def _pool(workers: int) -> ProcessPoolExecutor:
     pool = _POOLS.get(workers)
     if pool is None:
-        from kgarment.sim.assembly import SparseCholesky
-
         methods = mp.get_all_start_methods()
         method = "fork" if "fork" in methods else "spawn"
         if SparseCholesky.openmp_used and "forkserver" in methods:
@@ -47,8 +49,6 @@ def _init_worker() -> None:
     mid-task would leave the pool's shutdown waiting for it forever.  They run BLAS on one
     thread for good (``solve.blas_threads``: OpenBLAS's spinning idle threads would take
     the other workers' cores)."""
-    from kgarment.sim.solve import blas_threads
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     blas_threads(1)
 
@@ -62,15 +62,11 @@ def shutdown() -> None:
 
 
 def _task(model, design, state, warm, options):
-    from kgarment.sim.solve import _solve_all
-
-    return _solve_all(model, design, [state], [warm], options)[0]
+    return solve_serial(model, design, [state], [warm], options)[0]
 
 
 def solve_parallel(model, design, states, warm, options) -> list:
     """One task per state on ``options.workers`` processes (each single-process)."""
-    from dataclasses import replace
-
     sub = replace(options, workers=1)
     pool = _pool(options.workers)
     order = sorted(range(len(states)), key=lambda i: -_LAST_ITERATIONS.get(states[i].name, 0))

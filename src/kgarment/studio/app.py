@@ -1,9 +1,19 @@
-"""The studio's web page on viser: scene drawing, clicks, jobs and messages.
+"""The studio's web page on viser: the parts put together, messages, drawing, files.
 
 :class:`Studio` owns a viser server, the edited :class:`~kgarment.studio.state.StudioState`
-and the page's settings; :mod:`kgarment.studio.panel` builds the controls and calls the
-public methods here, which tests may call too. Every action that can fail on the user's
-input shows a message in the page (and a notification) and changes nothing.
+and the page's :class:`~kgarment.studio.settings.Settings`, and is made of parts split by
+responsibility:
+
+- ``edit`` (:class:`~kgarment.studio.edit.Editor`): the tools, clutch actions, undo;
+- ``sims`` (:class:`~kgarment.studio.simulations.Simulations`): designs A and B simulated;
+- ``optimiser`` (:class:`~kgarment.studio.optimise.Optimiser`): optimisations and runs;
+- ``scene`` (:class:`~kgarment.studio.scene.Scene`): the 3D meshes and picking;
+- ``panel`` (:class:`~kgarment.studio.panel.Panel`): the controls.
+
+The parts reach the page only through the :class:`~kgarment.studio.page.Page` protocol,
+which :class:`Studio` implements (messages, refreshes); files (save, open, export) are the
+Studio's own. Every action that can fail on the user's input shows a message in the page
+(and a notification) and changes nothing.
 """
 
 from __future__ import annotations
@@ -11,89 +21,60 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from dataclasses import dataclass, field
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
+from kgarment.body import Body
 from kgarment.errors import KgarmentError
 from kgarment.studio import brush, view
-from kgarment.studio.actions import Actions
-from kgarment.studio.session import Opened, build_state
+from kgarment.studio.edit import Editor
+from kgarment.studio.optimise import Optimiser
+from kgarment.studio.panel import Panel
+from kgarment.studio.scene import Scene, garment_colors, garment_target
+from kgarment.studio.session import Opened, build_state, export_design, read_source, save_session
+from kgarment.studio.settings import Settings
+from kgarment.studio.simulations import Simulations
+from kgarment.studio.state import StudioState
 
 log = logging.getLogger(__name__)
-GARMENT_LIFT = 0.002  # metres: the garment is drawn this far off the skin
-CLUTCH_LIFT = 0.004
-NO_SHADOW = {"cast_shadow": False, "receive_shadow": False}  # shadows cost much in software WebGL
-TOOLS = ("select", "place clutch", "move clutch", "aim clutch", "paint reinforcement", "erase reinforcement",
-         "paint attachments", "erase attachments")
-BRUSH_TOOLS = {"paint reinforcement": ("design", True), "erase reinforcement": ("design", False),
-               "paint attachments": ("attached", True), "erase attachments": ("attached", False)}
+MESSAGES_KEPT = 50
+T = TypeVar("T")
 
 
-@dataclass
-class Settings:
-    """The page's settings (saved with a session)."""
-
-    motion: str = "rest"
-    clutches_on: bool = True
-    pose: float = 1.0
-    mode: str = "design"
-    show_body: bool = True
-    tool: str = "select"
-    radius: float = 0.02
-    brush_mode: str = "surface"
-    sim_motions: list = field(default_factory=list)
-
-    def to_dict(self) -> dict:
-        return dict(self.__dict__)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> Settings:
-        s = cls()
-        for k, v in d.items():
-            if hasattr(s, k) and isinstance(v, type(getattr(s, k))):
-                setattr(s, k, v)
-        return s
-
-
-class Studio(Actions):
+class Studio:
     """The web app (see the module docstring). ``opened`` from
-    :func:`kgarment.studio.session.read_source`; ``body`` reuses a posed body (tests)."""
+    :func:`kgarment.studio.session.read_source`; ``session`` : folder Save writes to
+    (default: the opened session's); ``runs`` : where optimisations go when no folder is
+    named; ``body`` reuses a posed body (tests)."""
 
-    def __init__(self, opened: Opened, *, host: str = "127.0.0.1", port: int = 8080, session=None,
-                 runs="runs/studio", device: str = "cpu", body=None):
-        import viser
+    def __init__(self, opened: Opened, *, host: str = "127.0.0.1", port: int = 8080,
+                 session: str | Path | None = None, runs: str | Path = "runs/studio", device: str = "cpu",
+                 body: Body | None = None):
+        import viser  # the optional [studio] extra: importing kgarment.studio must work without it
 
         self.lock = threading.RLock()
         self.device = device
-        self.runs_root = Path(runs)
-        self.session_dir = Path(session) if session else opened.session
-        self.state = build_state(opened, body)
+        self.session_dir: Path | None = Path(session) if session else opened.session
+        self.state: StudioState = build_state(opened, body)
         self.settings = Settings.from_dict(opened.settings)
-        self._fix_settings()
-        self.selected: str | None = None
-        self.pending_start: np.ndarray | None = None
-        self.eval_a = self.eval_b = None
-        self.compare = opened.compare
-        self.full_cache: dict = {}
-        self.run = None
-        self.run_k = 0
-        self.sim_job = self.opt_job = None
+        self.settings.fit(self.state.base_garment.motion_names, self.state.problem.motions)
         self.messages: list[tuple[str, bool]] = []
         self._confirm_open: str | None = None
-        self._stroke = False
+        self.edit = Editor(self)
+        self.sims = Simulations(self, opened.compare)
+        self.optimiser = Optimiser(self, self.sims, Path(runs))
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
         self.server.scene.set_up_direction("+z")
-        self._handles: dict = {}
-        from kgarment.studio.panel import Panel
-
+        self.scene = Scene(self.server, self._on_drag)
         self.panel = Panel(self)
         self.server.scene.on_click()(self._on_scene_click)
-        self._set_initial_camera()
+        self.scene.set_initial_camera(self.state.base_garment.rest_vertices)
         self.redraw()
         if opened.run is not None:
-            self.open_run(opened.run)
+            self.optimiser.open(opened.run)
 
     # ----- life cycle -------------------------------------------------------------------
     @property
@@ -101,24 +82,18 @@ class Studio(Actions):
         return f"http://{self.server.get_host()}:{self.server.get_port()}"
 
     def stop(self) -> None:
-        for job in (self.sim_job, self.opt_job):
+        for job in (self.sims.job, self.optimiser.job):
             if job is not None and job.running:
                 job.cancel()
         self.server.stop()
 
-    def _fix_settings(self) -> None:
-        s, names = self.settings, self.state.base_garment.motion_names
-        if s.motion != "rest" and s.motion not in names:
-            s.motion = "rest"
-        s.sim_motions = [m for m in s.sim_motions if m in self.state.problem.motions] or list(self.state.problem.motions)
-
-    # ----- messages ---------------------------------------------------------------------
+    # ----- the Page protocol: messages and refreshes -------------------------------------
     def say(self, text: str, error: bool = False, notify: bool = False) -> None:
         """Show ``text`` in the page's status line; errors (and ``notify``) also pop up
         as a notification (errors stay until closed)."""
         (log.warning if error else log.info)("studio: %s", text)
         self.messages.append((text, error))
-        del self.messages[:-50]
+        del self.messages[:-MESSAGES_KEPT]
         self.panel.show_message(text, error)
         if not (error or notify):
             return
@@ -129,7 +104,27 @@ class Studio(Actions):
             except Exception:
                 log.debug("notification not delivered", exc_info=True)
 
-    def guarded(self, fn, *args, **kwargs):
+    def refresh(self, *, scene: bool = False, body: bool = False, results: bool = False, run: bool = False,
+                settings: bool = False, clutch: bool = False) -> None:
+        """Bring parts of the page up to date (see :meth:`kgarment.studio.page.Page.refresh`)."""
+        if settings:
+            self.panel.sync_settings()
+        if clutch:
+            self.panel.sync_clutch()
+        if run:
+            self.panel.show_run()
+        if results:
+            self.panel.show_results()
+        if scene or body:
+            self.redraw(body=body)
+
+    def show_progress(self, job: str, text: str) -> None:
+        self.panel.show_progress(job, text)
+
+    def clutch_defaults(self) -> dict[str, float | bool]:
+        return self.panel.clutch_defaults()
+
+    def guarded(self, fn: Callable[..., T], *args, **kwargs) -> T | None:
         """Run ``fn``; user errors and crashes become a message in the page (returns None)."""
         try:
             return fn(*args, **kwargs)
@@ -140,266 +135,54 @@ class Studio(Actions):
             self.say(f"{type(exc).__name__}: {exc}", error=True)
         return None
 
-    # ----- geometry shown ---------------------------------------------------------------
-    def _state_key(self) -> str:
-        states = ("on", "off", "none")
-        want = "on" if self.settings.clutches_on else "off"
-        keys = {k[1] for e in (self.eval_a,) if e is not None for k in e.garment_x}
-        return want if want in keys or not keys else next(s for s in states if s in keys)
-
+    # ----- what is shown ----------------------------------------------------------------
     def garment_positions(self) -> np.ndarray:
-        """(n, 3) displayed garment: rest blended towards the equilibrium of design A (if
+        """(n, 3) displayed garment, m: rest blended towards the equilibrium of design A (if
         simulated for this motion and clutch state) or the skin-tight target pose."""
         g, s = self.state.base_garment, self.settings
         if s.motion == "rest":
             return g.rest_vertices
-        key = (s.motion, self._state_key())
-        target = self.eval_a.garment_x[key] if self.eval_a is not None and key in self.eval_a.garment_x else g.vertices(s.motion)
-        return view.interpolate(g.rest_vertices, target, s.pose)
+        return view.interpolate(g.rest_vertices, garment_target(self.state, s, self.sims.a), s.pose)
 
     def body_positions(self) -> np.ndarray:
+        """(nb, 3) displayed body, m."""
         b, s = self.state.body, self.settings
         return b.rest_vertices if s.motion == "rest" else view.interpolate(b.rest_vertices, b.vertices(s.motion), s.pose)
 
     def garment_colors(self) -> tuple[np.ndarray, str]:
         """((m, 3) uint8 colours, markdown legend) for the current colour mode."""
-        st, s = self.state, self.settings
-        if s.mode == "attachments":
-            return view.attachment_colors(st.attached), view.legend("attachments")
-        if s.mode == "strain":
-            x = self.garment_positions()
-            c, lo, hi = view.scalar_colors(view.face_strain(st.base_garment.rest_vertices, st.base_garment.faces, x),
-                                           vmin=0.0)
-            return c, view.legend("strain", lo, hi)
-        if s.mode == "energy density":
-            key = (s.motion, self._state_key())
-            if self.eval_a is not None and key in self.eval_a.density:
-                c, lo, hi = view.scalar_colors(self.eval_a.density[key], vmin=0.0)
-                return c, view.legend("energy density", lo, hi, note=f"design A, {key[0]}, clutches {key[1]}")
-            note = "no simulation of design A for this motion and clutch state: simulate first (showing the design)"
-            return view.design_colors(st.design, st.attached), view.legend("design", note=note)
-        if s.mode == "compare":
-            if self.compare is None:
-                return view.design_colors(st.design, st.attached), view.legend("design", note="no design B yet")
-            return view.compare_colors(st.design, self.compare[1]), view.legend("compare", note=f"B: {self.compare[0]}")
-        if s.mode == "run":
-            if self.run is None or self.run.n_iterations == 0:
-                return view.design_colors(st.design, st.attached), view.legend("design", note="no run open")
-            return view.design_colors(self.run.design(self.run_k)), view.legend("run", note=self.run.summary(self.run_k))
-        return view.design_colors(st.design, st.attached), view.legend("design")
+        x = self.garment_positions() if self.settings.mode == "strain" else self.state.base_garment.rest_vertices
+        return garment_colors(self.state, self.settings, x, a=self.sims.a, design_b=self.sims.design_b,
+                              run=self.optimiser.run, k=self.optimiser.k)
 
-    # ----- drawing ----------------------------------------------------------------------
     def redraw(self, body: bool = True) -> None:
         """Send the body, garment and clutches as they should look now."""
         with self.lock:
-            scene, st = self.server.scene, self.state
+            st, s, scene = self.state, self.settings, self.scene
+            faces = st.base_garment.faces
             if body:
-                bv = self.body_positions()
-                h = self._handles.get("body")
-                if h is None:
-                    self._handles["body"] = scene.add_mesh_simple("/body", bv, st.body.faces, color=view.SKIN,
-                                                                  visible=self.settings.show_body, **NO_SHADOW)
-                else:
-                    h.vertices = bv.astype(np.float32)
-                    h.visible = self.settings.show_body
+                scene.draw_body(self.body_positions(), st.body.faces, s.show_body)
             gx = self.garment_positions()
-            shown = view.offset_along_normals(gx, st.base_garment.faces, GARMENT_LIFT)
-            self._shown = shown
             colors, legend = self.garment_colors()
-            glb = view.glb_bytes(shown, st.base_garment.faces, colors)
-            h = self._handles.get("garment")
-            if h is None:
-                self._handles["garment"] = scene.add_glb("/garment", glb, **NO_SHADOW)
-                self._handles["garment"].on_drag(self._on_drag)
+            scene.draw_garment(gx, faces, colors)
+            strips = st.strips()
+            on = view.CLUTCH_ON if s.clutches_on else view.CLUTCH_OFF
+            scene.draw_clutches(gx, faces, strips, [view.SELECTED if c.name == self.edit.selected else on
+                                                    for c in strips])
+            pending = self.edit.pending_start
+            if pending is None:
+                scene.draw_marker(None)
             else:
-                h.glb_data = glb
-            self._draw_clutches(gx)
+                hit = st.topology.closest_point(np.asarray(pending))
+                scene.draw_marker(scene.displayed(hit.face, hit.bary, faces))
             self.panel.show_legend(legend)
             self.panel.refresh_status()
             self.panel.show_results()
 
-    def _draw_clutches(self, gx: np.ndarray) -> None:
-        scene, st = self.server.scene, self.state
-        for h in self._handles.pop("clutches", []):
-            h.remove()
-        lifted = view.offset_along_normals(gx, st.base_garment.faces, CLUTCH_LIFT)
-        hs = []
-        for k, strip in enumerate(st.strips()):
-            color = view.SELECTED if strip.name == self.selected else (
-                view.CLUTCH_ON if self.settings.clutches_on else view.CLUTCH_OFF)
-            x = strip.bound_positions(lifted, st.base_garment.faces)
-            hs.append(scene.add_mesh_simple(f"/clutches/c{k}", x, strip.faces, color=color, side="double",
-                                             **NO_SHADOW))
-        self._handles["clutches"] = hs
-        old = self._handles.pop("pending", None)
-        if old is not None:
-            old.remove()
-        if self.pending_start is not None:
-            self._handles["pending"] = scene.add_icosphere("/pending", radius=0.006, color=view.SELECTED,
-                                                           position=tuple(self._displayed(self.pending_start)))
-
-    def _displayed(self, rest_point: np.ndarray) -> np.ndarray:
-        hit = self.state.topology.closest_point(np.asarray(rest_point))
-        return hit.bary @ self._shown[self.state.base_garment.faces[hit.face]]
-
-    def _set_initial_camera(self) -> None:
-        g = self.state.base_garment.rest_vertices
-        c = g.mean(axis=0)
-        size = float(np.linalg.norm(g.max(axis=0) - g.min(axis=0)))
-        cam = self.server.initial_camera
-        cam.position = tuple(c + np.array([0.3, -1.0, 0.35]) * max(size, 0.3) * 1.6)
-        cam.look_at = tuple(c)
-        cam.up = (0.0, 0.0, 1.0)
-
     def look_at_face(self, face: int, distance: float = 0.35) -> np.ndarray:
         """Point every open page's camera at garment ``face`` from outside, along its normal;
         returns the camera position (3,)."""
-        x = self._shown
-        tri = x[self.state.base_garment.faces[face]]
-        c = tri.mean(axis=0)
-        n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
-        n /= np.linalg.norm(n)
-        for client in self.server.get_clients().values():
-            with client.atomic():
-                client.camera.up_direction = (0.0, 0.0, 1.0)
-                client.camera.position = tuple(c + distance * n)
-                client.camera.look_at = tuple(c)
-        return c + distance * n
-
-    # ----- picking ----------------------------------------------------------------------
-    def pick(self, origin, direction) -> brush.Hit | None:
-        """The garment hit of a ray in the displayed scene, or None when the ray misses the
-        garment or meets the body first."""
-        st = self.state
-        hit = brush.ray_hit(origin, direction, self._shown, st.base_garment.faces)
-        if hit is None:
-            return None
-        if self.settings.show_body:
-            b = brush.ray_hit(origin, direction, self.body_positions(), st.body.faces)
-            if b is not None and b.distance < hit.distance - 0.01:
-                return None
-        return hit
-
-    def _on_scene_click(self, event) -> None:
-        self.guarded(self.click_ray, event.ray_origin, event.ray_direction)
-
-    def click_ray(self, origin, direction) -> None:
-        """A click in the scene: what happens depends on the tool."""
-        hit = self.pick(origin, direction)
-        if hit is None:
-            if self.settings.tool != "select":
-                raise KgarmentError("that click is not on the garment; click on the garment (blue cloth)")
-            return
-        self.click_face(hit.face, hit.bary)
-
-    def click_face(self, face: int, bary=(1 / 3, 1 / 3, 1 / 3)) -> None:
-        """A click on the garment at (face, barycentric (3,)), by the current tool."""
-        tool = self.settings.tool
-        with self.lock:
-            p = self.state.rest_point(int(face), bary)
-            if tool in BRUSH_TOOLS:
-                layer, value = BRUSH_TOOLS[tool]
-                n = self.state.paint(int(face), p, self.settings.radius, value, layer, self.settings.brush_mode)
-                self.say(f"{tool}: {n} faces changed at face {face}")
-            elif tool == "place clutch":
-                self._place_click(p)
-            elif tool in ("move clutch", "aim clutch"):
-                if self.selected is None:
-                    raise KgarmentError(f"{tool}: select a clutch first (Edit tab, or click it with 'select')")
-                if tool == "move clutch":
-                    self.state.move_clutch(self.selected, p)
-                else:
-                    self.state.aim_clutch(self.selected, p)
-                self.say(f"clutch {self.selected}: {tool.split()[0]}d")
-            else:
-                from kgarment.studio.placement import nearest_clutch
-
-                name = nearest_clutch(self.state.strips(), p)
-                if name is not None:
-                    self.select_clutch(name)
-                self.say(f"face {face} at {np.round(p, 3).tolist()} m" + (f"; clutch {name} selected" if name else ""))
-            self.redraw(body=False)
-            self.panel.sync_clutch()
-
-    def _place_click(self, p: np.ndarray) -> None:
-        if self.pending_start is None:
-            self.pending_start = p
-            self.say("clutch start set: now click where the clutch should head")
-            return
-        from kgarment.studio.placement import clutch_from_points
-
-        start, self.pending_start = self.pending_start, None
-        d = self.panel.clutch_defaults()
-        spec = clutch_from_points(self.state.new_clutch_name(), start, p, **d)
-        self.state.add_clutch(spec)
-        self.selected = spec.name
-        self.say(f"clutch {spec.name} placed ({100 * spec.length:.1f} cm x {100 * spec.width:.1f} cm)")
-
-    def _on_drag(self, event) -> None:
-        tool = self.settings.tool
-        if tool not in BRUSH_TOOLS:
-            return
-        cam = event.client.camera.position
-        point = event.start_position if event.phase == "start" else event.end_position
-        o, d = brush.camera_ray(cam, point)
-        hit = self.pick(o, d)
-        if hit is None:
-            return
-        layer, value = BRUSH_TOOLS[tool]
-        with self.lock:
-            p = self.state.rest_point(hit.face, hit.bary)
-            self.state.paint(hit.face, p, self.settings.radius, value, layer, self.settings.brush_mode,
-                             record=event.phase == "start")
-            self.redraw(body=False)
-
-    # ----- clutch actions ---------------------------------------------------------------
-    def select_clutch(self, name: str | None) -> None:
-        if name is not None:
-            self.state.clutch(name)
-        self.selected = name
-        self.panel.sync_clutch()
-        self.redraw(body=False)
-
-    def add_clutch_at_landmarks(self, start: str, towards: str) -> None:
-        from kgarment.studio.placement import clutch_from_landmarks
-
-        base = start.replace(".", "_")
-        spec = clutch_from_landmarks(self.state.new_clutch_name(base), start, towards, **self.panel.clutch_defaults())
-        self.state.add_clutch(spec)
-        self.selected = spec.name
-        self.say(f"clutch {spec.name} placed at {start}, heading to {towards}")
-        self.panel.sync_clutch()
-        self.redraw(body=False)
-
-    def edit_selected(self, **changes) -> None:
-        """Change the selected clutch (length, width, ...); on error the controls go back."""
-        if self.selected is None:
-            return
-        try:
-            strip = self.state.edit_clutch(self.selected, **changes)
-        except KgarmentError:
-            self.panel.sync_clutch()
-            raise
-        self.selected = strip.name
-        self.panel.sync_clutch()
-        self.redraw(body=False)
-
-    def delete_selected(self) -> None:
-        if self.selected is None:
-            raise KgarmentError("no clutch selected")
-        name = self.selected
-        self.state.delete_clutch(name)
-        self.selected = None
-        self.say(f"clutch {name} deleted")
-        self.panel.sync_clutch()
-        self.redraw(body=False)
-
-    def undo(self) -> None:
-        self.say("undone" if self.state.undo() else "nothing to undo")
-        if self.selected not in self.state.clutch_names():
-            self.selected = None
-        self.panel.sync_clutch()
-        self.redraw(body=False)
+        return self.scene.look_at_face(face, self.state.base_garment.faces, distance)
 
     def play(self, seconds: float = 2.0, steps: int = 24) -> None:
         """Animate the pose slider from rest to the target pose (in a thread)."""
@@ -412,3 +195,82 @@ class Studio(Actions):
 
         threading.Thread(target=run, daemon=True).start()
 
+    # ----- clicks -----------------------------------------------------------------------
+    def pick(self, origin, direction) -> brush.Hit | None:
+        """The garment hit of a ray in the displayed scene, or None when the ray misses the
+        garment or meets the body first."""
+        st = self.state
+        body = (self.body_positions(), st.body.faces) if self.settings.show_body else None
+        return self.scene.pick(origin, direction, st.base_garment.faces, body)
+
+    def click_ray(self, origin, direction) -> None:
+        """A click in the scene (ray origin (3,), direction (3,)): the tool acts on the
+        garment point hit."""
+        hit = self.pick(origin, direction)
+        if hit is None:
+            if self.settings.tool != "select":
+                raise KgarmentError("that click is not on the garment; click on the garment (blue cloth)")
+            return
+        self.edit.click_face(hit.face, hit.bary)
+
+    def _on_scene_click(self, event) -> None:
+        self.guarded(self.click_ray, event.ray_origin, event.ray_direction)
+
+    def _on_drag(self, event) -> None:
+        cam = event.client.camera.position
+        point = event.start_position if event.phase == "start" else event.end_position
+        hit = self.pick(*brush.camera_ray(cam, point))
+        if hit is not None:
+            self.edit.dab(hit.face, hit.bary, start=event.phase == "start")
+
+    # ----- files ------------------------------------------------------------------------
+    def save(self, folder: str | None = None) -> list[Path]:
+        """Save the session (problem, clutches, designs, attachments, settings, results)."""
+        target = Path(folder.strip()) if folder and folder.strip() else self.session_dir
+        if target is None:
+            raise KgarmentError("give a session folder to save into")
+        run = self.optimiser.run
+        paths = save_session(self.state, target, settings=self.settings.to_dict(), compare=self.sims.design_b,
+                             results=self.sims.to_json(), run=run.folder if run is not None else None)
+        self.session_dir = target
+        self.say(f"session saved to {target} ({len(paths)} files)", notify=True)
+        self.panel.refresh_status()
+        return paths
+
+    def open(self, path: str, force: bool = False) -> None:
+        """Replace the studio's contents by a problem file, run folder or session. With
+        unsaved changes the first call only warns; a second call with the same path opens."""
+        text = path.strip()
+        if not text:
+            raise KgarmentError("give a problem file, a run folder or a session folder to open")
+        if self.sims.running or self.optimiser.running:
+            raise KgarmentError("a simulation or optimisation is running; stop it before opening something else")
+        if self.state.dirty and not force and self._confirm_open != text:
+            self._confirm_open = text
+            raise KgarmentError("there are unsaved changes: save them, or press Open again to discard them")
+        opened = read_source(text)
+        body = self.state.body if opened.problem.body == self.state.problem.body else None
+        new = build_state(opened, body)
+        with self.lock:
+            self.state, self._confirm_open = new, None
+            self.session_dir = opened.session or self.session_dir
+            self.sims.reset(opened.compare)
+            self.edit.reset()
+            self.optimiser.close()
+            self.settings = Settings.from_dict(opened.settings)
+            self.settings.fit(new.base_garment.motion_names, new.problem.motions)
+        self.panel.rebuild_for_state()
+        self.scene.set_initial_camera(new.base_garment.rest_vertices)
+        self.redraw()
+        self.say(f"opened {text} ({opened.kind}): {new.base_garment.name}, {new.n_faces} faces, "
+                 f"{len(new.clutches)} clutches", notify=True)
+        if opened.run is not None:
+            self.guarded(self.optimiser.open, opened.run)
+
+    def export_a(self, path: str) -> Path:
+        """Write design A as a design NPZ (``kgarment simulate --design`` reads it)."""
+        if not path.strip():
+            raise KgarmentError("give a file name for the design (.npz)")
+        out = export_design(path.strip(), self.state.design, self.state.base_garment)
+        self.say(f"design A written to {out}", notify=True)
+        return out

@@ -1,8 +1,8 @@
 """Background jobs (simulations, optimisations) that never touch the edited state.
 
 A :class:`Job` runs ``work(job)`` in a daemon thread. ``work`` reads a frozen copy of
-what it needs, reports progress with ``job.report(text)``, checks ``job.cancelled``, and
-returns a result; the job then calls ``on_done(result)``, or ``on_error(message)`` with a
+what it needs, reports progress with ``job.report(text)``, checks ``job.cancelled`` (and
+raises :class:`kgarment.errors.Cancelled` to stop), and returns a result; the job then calls ``on_done(result)``, or ``on_error(message)`` with a
 one-line message if it raised (user errors as they are, anything else as "what failed:
 type: reason", with the traceback in the log). Either way the studio's edits stay as
 they were: jobs hand results over, they do not write into the state.
@@ -14,22 +14,23 @@ import logging
 import threading
 import time
 from collections.abc import Callable
+from typing import Generic, TypeVar
 
-from kgarment.errors import KgarmentError
-from kgarment.studio.evaluate import Cancelled
+from kgarment.errors import Cancelled, KgarmentError
 
 log = logging.getLogger(__name__)
+T = TypeVar("T")
 
 
-class Job:
+class Job(Generic[T]):
     """One background computation (see the module docstring).
 
     status : "idle" | "running" | "done" | "failed" | "cancelled"; message : the last
     progress or error text; result : what ``work`` returned (when done).
     """
 
-    def __init__(self, name: str, work: Callable[[Job], object],
-                 on_done: Callable[[object], None] | None = None,
+    def __init__(self, name: str, work: Callable[[Job[T]], T],
+                 on_done: Callable[[T], None] | None = None,
                  on_error: Callable[[str], None] | None = None,
                  on_report: Callable[[str], None] | None = None,
                  on_cancel: Callable[[], None] | None = None):
@@ -41,7 +42,7 @@ class Job:
         self._thread: threading.Thread | None = None
         self.status = "idle"
         self.message = ""
-        self.result = None
+        self.result: T | None = None
         self.started = 0.0
 
     @property
@@ -58,7 +59,7 @@ class Job:
         if self._on_report is not None:
             _safe(self._on_report, text)
 
-    def start(self) -> Job:
+    def start(self) -> Job[T]:
         if self._thread is not None:
             raise RuntimeError(f"job {self.name} was started already")
         self.status, self.started = "running", time.time()

@@ -1,25 +1,54 @@
 """The studio's control panel (viser GUI): tabs View, Edit, Simulate, Optimise, File.
 
-Every control calls a :class:`kgarment.studio.app.Studio` method through
-``studio.guarded`` so a bad input shows a message and changes nothing. Values the server
-sets itself (when a clutch is selected, a file opened, ...) fire the update callbacks with
-no client; those are ignored, so only the user's changes act.
+Every control calls an action of the studio or of one of its parts (``edit``, ``sims``,
+``optimiser``) through ``studio.guarded``, so a bad input shows a message and changes
+nothing. Values the server sets itself (when a clutch is selected, a file opened, ...)
+fire the update callbacks with no client; those are ignored, so only the user's changes act.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Protocol
+
 import numpy as np
 
+from kgarment.constants import BUDGET_RANGE
 from kgarment.studio import view
+from kgarment.studio.edit import Editor
+from kgarment.studio.optimise import Optimiser
+from kgarment.studio.page import Page
 from kgarment.studio.placement import LENGTH_RANGE, WIDTH_RANGE
+from kgarment.studio.runs import progress_image
+from kgarment.studio.settings import TOOLS
+from kgarment.studio.simulations import Simulations
 
 NONE = "(none)"
+
+
+class Host(Page, Protocol):
+    """What the panel drives: the page (:class:`~kgarment.studio.page.Page`), its parts and
+    its own actions (:class:`kgarment.studio.app.Studio`)."""
+
+    server: Any  # a viser.ViserServer (viser is an optional extra, imported by the app only)
+    edit: Editor
+    sims: Simulations
+    optimiser: Optimiser
+    session_dir: Path | None
+
+    def guarded(self, fn: Callable, *args, **kwargs): ...
+    def redraw(self, body: bool = True) -> None: ...
+    def play(self, seconds: float = 2.0, steps: int = 24) -> None: ...
+    def save(self, folder: str | None = None) -> list[Path]: ...
+    def open(self, path: str, force: bool = False) -> None: ...
+    def export_a(self, path: str) -> Path: ...
 
 
 class Panel:
     """Builds the controls for ``studio`` and keeps them in step with its state."""
 
-    def __init__(self, studio):
+    def __init__(self, studio: Host):
         self.s = studio
         gui = studio.server.gui
         gui.configure_theme(control_width="large")
@@ -68,66 +97,65 @@ class Panel:
         self.legend = gui.add_markdown("")
 
     def _edit_tab(self, gui) -> None:
-        from kgarment.studio.app import TOOLS
-
-        s = self.s
-        self.tool = self._on(gui.add_dropdown("Tool", list(TOOLS)), self._set_tool)
+        e = self.s.edit
+        self.tool = self._on(gui.add_dropdown("Tool", list(TOOLS)), e.set_tool)
         self.radius = self._on(gui.add_slider("Brush radius (m)", 0.005, 0.15, 0.005, 0.02), self._set("radius", False))
         self.brush_mode = self._on(gui.add_dropdown("Brush reach", ["surface", "euclidean"]),
                                    self._set("brush_mode", False))
         self.coverage = gui.add_markdown("")
-        self.budget = self._on(gui.add_slider("Budget (area share)", 0.01, 1.0, 0.01, 0.15), self._set_budget)
+        self.budget = self._on(gui.add_slider("Budget (area share)", *BUDGET_RANGE, 0.01, 0.15), self._set_budget)
         self.face = gui.add_number("Face id", 0, min=0, step=1)
-        self._button(gui, "Apply tool at face", lambda: s.click_face(int(self.face.value)))
-        self._button(gui, "Clear reinforcement", lambda: self._layer("design", False))
-        self._button(gui, "Undo", s.undo)
+        self._button(gui, "Apply tool at face", lambda: e.click_face(int(self.face.value)))
+        self._button(gui, "Clear reinforcement", e.clear_design)
+        self._button(gui, "Undo", e.undo)
         with gui.add_folder("Clutches"):
-            self.clutch = self._on(gui.add_dropdown("Clutch", [NONE]), lambda v: s.select_clutch(None if v == NONE else v))
-            self.cname = self._on(gui.add_text("Name", ""), lambda v: s.edit_selected(name=v.strip()))
+            self.clutch = self._on(gui.add_dropdown("Clutch", [NONE]), lambda v: e.select_clutch(None if v == NONE else v))
+            self.cname = self._on(gui.add_text("Name", ""), lambda v: e.edit_selected(name=v.strip()))
             self.length = self._on(gui.add_slider("Length (m)", *LENGTH_RANGE, 0.005, 0.10),
-                                   lambda v: s.edit_selected(length=float(v)))
+                                   lambda v: e.edit_selected(length=float(v)))
             self.width = self._on(gui.add_slider("Width (m)", *WIDTH_RANGE, 0.001, 0.01),
-                                  lambda v: s.edit_selected(width=float(v)))
+                                  lambda v: e.edit_selected(width=float(v)))
             self.prestrain = self._on(gui.add_slider("Prestrain", 0.8, 1.0, 0.01, 1.0),
-                                      lambda v: s.edit_selected(prestrain=float(v)))
-            self.clip = self._on(gui.add_checkbox("Clip at the edge", False), lambda v: s.edit_selected(clip=bool(v)))
-            self._button(gui, "Delete clutch", s.delete_selected, color="red")
+                                      lambda v: e.edit_selected(prestrain=float(v)))
+            self.clip = self._on(gui.add_checkbox("Clip at the edge", False), lambda v: e.edit_selected(clip=bool(v)))
+            self._button(gui, "Delete clutch", e.delete_selected, color="red")
             self.start_mark = gui.add_dropdown("Start landmark", [NONE])
             self.towards_mark = gui.add_dropdown("Towards landmark", [NONE])
             self._button(gui, "Add clutch at landmarks",
-                         lambda: s.add_clutch_at_landmarks(self.start_mark.value, self.towards_mark.value))
+                         lambda: e.add_clutch_at_landmarks(self.start_mark.value, self.towards_mark.value))
 
     def _simulate_tab(self, gui) -> None:
-        s = self.s
+        sims = self.s.sims
         self.sim_folder = gui.add_folder("Motions to simulate")
         self.sim_boxes: dict = {}
-        self._button(gui, "Simulate design A", lambda: s.simulate("A", self._sim_motions()))
-        self._button(gui, "Simulate design B", lambda: s.simulate("B", self._sim_motions()))
-        self._button(gui, "Stop simulation", s.stop_simulation)
-        self._button(gui, "Pin A as B", s.pin_as_b)
+        self._button(gui, "Simulate design A", lambda: sims.simulate("A", self._sim_motions()))
+        self._button(gui, "Simulate design B", lambda: sims.simulate("B", self._sim_motions()))
+        self._button(gui, "Stop simulation", sims.stop)
+        self._button(gui, "Pin A as B", sims.pin_as_b)
         self.b_source = gui.add_text("Design B from", "", hint="a design .npz/.npy/.txt, a run folder or RUN@K")
-        self._button(gui, "Load design B", lambda: s.load_b(self.b_source.value))
+        self._button(gui, "Load design B", lambda: sims.load_b(self.b_source.value))
         self.sim_status = gui.add_markdown("")
         self.results = gui.add_markdown("")
 
     def _optimise_tab(self, gui) -> None:
-        s = self.s
+        o = self.s.optimiser
         self.run_out = gui.add_text("New run folder", "", hint="empty: runs/studio/studio-<date>-<time>")
         self.max_it = gui.add_number("Max iterations", 0, min=0, step=1, hint="0: the problem's setting")
         self._button(gui, "Start optimisation",
-                     lambda: s.optimise(self.run_out.value.strip() or None, int(self.max_it.value) or None))
-        self._button(gui, "Stop optimisation", s.stop_optimisation)
+                     lambda: o.optimise(self.run_out.value.strip() or None, int(self.max_it.value) or None))
+        self._button(gui, "Stop optimisation", o.stop)
         self.opt_status = gui.add_markdown("")
         self.plot = gui.add_image(np.full((30, 52, 3), 255, np.uint8), label="Progress")
         self.run_path = gui.add_text("Run folder", "")
-        self._button(gui, "Open run", lambda: s.open_run(self.run_path.value.strip()))
-        self.iteration = self._on(gui.add_slider("Iteration", 0, 1, 1, 0, disabled=True), lambda v: s.show_iteration(int(v)))
-        self.follow = gui.add_checkbox("Follow the latest iteration", True)
+        self._button(gui, "Open run", lambda: o.open(self.run_path.value.strip()))
+        self.iteration = self._on(gui.add_slider("Iteration", 0, 1, 1, 0, disabled=True), lambda v: o.show_iteration(int(v)))
+        self.follow = self._on(gui.add_checkbox("Follow the latest iteration", o.follow),
+                               lambda v: setattr(o, "follow", bool(v)))
         self.run_info = gui.add_markdown("")
-        self._button(gui, "Load iteration into design A", s.use_iteration)
-        self._button(gui, "Use iteration as design B", lambda: s.use_iteration(as_b=True))
+        self._button(gui, "Load iteration into design A", o.use_iteration)
+        self._button(gui, "Use iteration as design B", lambda: o.use_iteration(as_b=True))
         self.export_path = gui.add_text("Export iteration to", "design.npz")
-        self._button(gui, "Export iteration", lambda: s.export_iteration(self.export_path.value))
+        self._button(gui, "Export iteration", lambda: o.export_iteration(self.export_path.value))
 
     def _file_tab(self, gui) -> None:
         s = self.s
@@ -149,26 +177,11 @@ class Panel:
         if redraw:
             self.s.redraw(body=name in ("motion", "pose", "show_body"))
 
-    def _set_tool(self, value) -> None:
-        self.s.settings.tool = value
-        self.s.pending_start = None
-        hints = {"place clutch": "click the clutch's start on the garment, then a point it should head to",
-                 "move clutch": "click where the selected clutch should start",
-                 "aim clutch": "click a point the selected clutch should head to",
-                 "select": "click a clutch to select it; drag to turn the view"}
-        self.s.say(hints.get(value, f"{value}: click or drag on the garment (radius {self.s.settings.radius:.3f} m)"))
-        self.s.redraw(body=False)
-
     def _set_budget(self, value) -> None:
         self.s.state.set_budget(float(value))
         self.refresh_status()
 
-    def _layer(self, layer: str, value: bool) -> None:
-        self.s.state.set_layer(layer, np.full(self.s.state.n_faces, value))
-        self.s.say("reinforcement cleared (undo restores it)")
-        self.s.redraw(body=False)
-
-    def _sim_motions(self) -> list:
+    def _sim_motions(self) -> list[str]:
         chosen = [m for m, box in self.sim_boxes.items() if box.value]
         self.s.settings.sim_motions = chosen
         return chosen
@@ -203,7 +216,7 @@ class Panel:
         self.budget.value = round(self.s.state.budget, 2)
 
     def sync_clutch(self) -> None:
-        st, name = self.s.state, self.s.selected
+        st, name = self.s.state, self.s.edit.selected
         self.clutch.options = [NONE] + st.clutch_names()
         self.clutch.value = name or NONE
         if name is not None:
@@ -215,7 +228,7 @@ class Panel:
             self.clip.value = bool(c.clip)
         self.refresh_status()
 
-    def clutch_defaults(self) -> dict:
+    def clutch_defaults(self) -> dict[str, float | bool]:
         """Length, width, prestrain, clip for a new clutch (the sliders' values)."""
         return {"length": float(self.length.value), "width": float(self.width.value),
                 "prestrain": float(self.prestrain.value), "clip": bool(self.clip.value)}
@@ -237,26 +250,16 @@ class Panel:
     def show_legend(self, text: str) -> None:
         self.legend.content = text
 
-    def show_sim_status(self, text: str) -> None:
-        self.sim_status.content = text
-
-    def show_opt_status(self, text: str) -> None:
-        self.opt_status.content = text
+    def show_progress(self, job: str, text: str) -> None:
+        """Progress of the "simulation" or "optimisation" job."""
+        (self.sim_status if job == "simulation" else self.opt_status).content = text
 
     def show_results(self) -> None:
-        from kgarment.studio.evaluate import results_table
-
-        a = self.s.eval_a
-        stale = a is not None and a.revision != self.s.state.revision
-        self.results.content = results_table(a, self.s.eval_b, stale)
-
-    def follow_latest(self) -> bool:
-        return bool(self.follow.value)
+        self.results.content = self.s.sims.table()
 
     def show_run(self) -> None:
-        from kgarment.studio.runs import progress_image
-
-        run = self.s.run
+        o = self.s.optimiser
+        run = o.run
         if run is None:
             self.iteration.disabled = True
             self.run_info.content = "No run open."
@@ -264,10 +267,10 @@ class Panel:
         n = run.n_iterations
         self.iteration.max = max(n - 1, 1)
         self.iteration.disabled = n == 0
-        self.iteration.value = min(self.s.run_k, max(n - 1, 0))
-        self.run_info.content = f"{run.folder}: {n} iterations. " + (run.summary(self.s.run_k) if n else "")
+        self.iteration.value = min(o.k, max(n - 1, 0))
+        self.run_info.content = f"{run.folder}: {n} iterations. " + (run.summary(o.k) if n else "")
         self.plot.image = progress_image(run.metrics)
-        if self.s.opt_job is not None and self.s.opt_job.running and run.metrics:
+        if o.running and run.metrics:
             row = run.metrics[-1]
             self.opt_status.content = f"iteration {row['iteration']}: area {100 * row['area']:.1f}%, " \
                                       f"objective {row['objective']:.4f}"

@@ -10,26 +10,41 @@ from __future__ import annotations
 
 import json
 import zipfile
-from dataclasses import asdict, dataclass
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
+from kgarment.design import LoopState, load_design_history
 from kgarment.errors import KgarmentError
+from kgarment.problem import BodySpec, GarmentSpec, Problem, load_problem
 
 
-@dataclass
+@dataclass(frozen=True)
 class RunHistory:
-    """A run folder read for scrubbing.
+    """A run folder read for scrubbing (or followed while it runs).
 
     folder : Path; problem : Problem (the run's problem.toml); designs : (K, m) bool, the
     design of every iteration (K may be 0 while a run starts); metrics : K dict rows.
     """
 
     folder: Path
-    problem: object
-    designs: np.ndarray
-    metrics: list
+    problem: Problem
+    designs: np.ndarray = field(repr=False)
+    metrics: tuple[dict, ...]
+
+    @classmethod
+    def empty(cls, folder: Path, problem: Problem, n_faces: int) -> RunHistory:
+        """A run that has not finished an iteration yet."""
+        return cls(Path(folder), problem, np.zeros((0, n_faces), bool), ())
+
+    def following(self, st: LoopState) -> RunHistory:
+        """This run with the iterations of a running design loop's state ``st``."""
+        designs = np.array(st.designs, dtype=bool).reshape(len(st.designs), -1)
+        return RunHistory(self.folder, self.problem, designs, tuple(st.metrics))
 
     @property
     def n_iterations(self) -> int:
@@ -54,11 +69,8 @@ class RunHistory:
                 f"objective {row.get('objective', float('nan')):.4f}; rho {rho}")
 
 
-def open_run(folder) -> RunHistory:
+def read_run(folder) -> RunHistory:
     """Read a run folder (raises KgarmentError naming what is missing or damaged)."""
-    from kgarment.design.run import load_design_history
-    from kgarment.problem import load_problem
-
     folder = Path(folder)
     if not folder.is_dir():
         raise KgarmentError(f"run folder not found: {folder}")
@@ -77,15 +89,15 @@ def open_run(folder) -> RunHistory:
             metrics = json.loads((folder / "metrics.json").read_text())
         except ValueError:
             metrics = []
-    return RunHistory(folder, problem, designs, metrics)
+    return RunHistory(folder, problem, designs, tuple(metrics))
 
 
-def _garment_text(g, n_faces: int | None) -> str:
+def _garment_text(g: GarmentSpec, n_faces: int | None) -> str:
     what = g.template or f"mask {g.mask}"
     return f"{what} at subdivision {g.subdivision}" + (f" ({n_faces} faces)" if n_faces is not None else "")
 
 
-def check_compatible(run: RunHistory, problem, n_faces: int) -> None:
+def check_compatible(run: RunHistory, problem: Problem, n_faces: int) -> None:
     """Raise KgarmentError unless ``run`` was made on ``problem``'s body and garment and its
     designs have ``n_faces`` faces."""
     mine, theirs = problem, run.problem
@@ -101,13 +113,13 @@ def check_compatible(run: RunHistory, problem, n_faces: int) -> None:
                             f"the studio has {_garment_text(gm, n_faces)}")
 
 
-def _body_text(b) -> str:
+def _body_text(b: BodySpec) -> str:
     if b.model == "anny":
         return "Anny, phenotype " + ", ".join(f"{k} {v:g}" for k, v in asdict(b.phenotype).items())
     return f"meshes from {b.rest}"
 
 
-def metric_series(rows: list[dict]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def metric_series(rows: Sequence[dict]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """(iterations (K,), {label: (K,) values}) of the rho curves and the area share (%)."""
     it = np.array([r.get("iteration", k) for k, r in enumerate(rows)], dtype=np.float64)
     keys = list(dict.fromkeys(k for r in rows for k in r if k.startswith("rho[")))
@@ -116,15 +128,10 @@ def metric_series(rows: list[dict]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     return it, out
 
 
-def progress_image(rows: list[dict], width_px: int = 520, height_px: int = 300) -> np.ndarray:
+def progress_image(rows: Sequence[dict], width_px: int = 520, height_px: int = 300) -> np.ndarray:
     """(H, W, 3) uint8 picture of rho per motion and state against iteration (dashed: OFF)
-    with the reinforced area share, like the run folder's progress.png."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
+    with the reinforced area share, like the run folder's progress.png (drawn on an Agg
+    canvas of its own: no pyplot, safe in the page's threads)."""
     dpi = 100
     fig = Figure(figsize=(width_px / dpi, height_px / dpi), dpi=dpi)
     canvas = FigureCanvasAgg(fig)

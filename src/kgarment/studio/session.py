@@ -11,58 +11,87 @@ A session is a folder that every kgarment command can read piece by piece::
     results.json       the last simulation results shown in the page (optional)
 
 Problem files cannot say which single faces are attached (only which boundary rings), so
-painted attachments live in attachments.npz; runs started from the studio copy it too.
+painted attachments live in attachments.npz; runs started from the studio hold one too
+(written by the run driver, which reads it back on ``kgarment design --resume``).
 Every file is written atomically; a folder holding anything but a session is refused.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import tomllib
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import tomli_w
 
-from kgarment.design.beso import X_MIN
-from kgarment.design.run import atomic_write_text
+from kgarment.body import Body
+from kgarment.clutch import save_clutches
+from kgarment.design import design_values, load_design_history
 from kgarment.errors import KgarmentError
-from kgarment.paths import atomic_save_npz
+from kgarment.garment import Garment
+from kgarment.io import atomic_save_npz, atomic_write_text
+from kgarment.problem import (
+    Problem,
+    build_body,
+    build_garment,
+    load_problem,
+    override,
+    problem_to_dict,
+)
+from kgarment.studio.state import StudioState
 
 FORMAT = "kgarment.studio"
 VERSION = 1
 SESSION_FILE = "studio.toml"
 
 
-@dataclass
+class DesignB(NamedTuple):
+    """The design compared with the edited one: label (shown in the page) and design (m,) bool."""
+
+    label: str
+    design: np.ndarray
+
+
+@dataclass(frozen=True)
 class Opened:
     """What a path given to the studio holds, before the body is built.
 
     kind : "default" | "problem" | "session" | "run"; problem : Problem;
-    design, attached : (m,) arrays or None; compare : (label, (m,) bool) or None;
+    design, attached : (m,) arrays or None; compare : design B or None;
     session : the folder Save writes to by default (None: ask); run : a run folder to show;
     settings : the page settings saved with a session; results : saved result rows.
     """
 
     kind: str
-    problem: object
+    problem: Problem
     design: np.ndarray | None = None
     attached: np.ndarray | None = None
-    compare: tuple | None = None
+    compare: DesignB | None = None
     session: Path | None = None
     run: Path | None = None
     settings: dict = field(default_factory=dict)
     results: dict = field(default_factory=dict)
 
+    def with_overrides(self, **changes) -> Opened:
+        """This source with command-line overrides of its problem (the keywords of
+        :func:`kgarment.problem.override`; None keeps the file's).  The garment of a session
+        or run that holds a design or attachments cannot change: those are per face."""
+        problem = override(self.problem, **changes)
+        per_face = self.design is not None or self.attached is not None
+        if problem.garment != self.problem.garment and self.kind in ("session", "run") and per_face:
+            raise KgarmentError(f"--garment/--subdivision cannot change the garment of a {self.kind}: its design "
+                                "and attachments are per face; open its problem.toml instead")
+        return dataclasses.replace(self, problem=problem)
 
-def build_state(opened: Opened, body=None):
+
+def build_state(opened: Opened, body: Body | None = None) -> StudioState:
     """The :class:`~kgarment.studio.state.StudioState` of an opened source: builds (or
     reuses ``body``, when it is posed in every motion of the problem) the body and garment."""
-    from kgarment.problem import build_body, build_garment
-    from kgarment.studio.state import StudioState
-
     problem = opened.problem
     if body is None or not set(problem.motions) <= set(body.motion_names):
         body = build_body(problem)
@@ -81,8 +110,6 @@ def is_run(path) -> bool:
 
 def read_source(path=None) -> Opened:
     """Read a problem file, a session folder (or its studio.toml), or a run folder."""
-    from kgarment.problem import Problem, load_problem
-
     if path is None:
         return Opened("default", Problem())
     p = Path(path)
@@ -101,13 +128,9 @@ def read_source(path=None) -> Opened:
 
 
 def _read_run(run: Path) -> Opened:
-    from kgarment.problem import load_problem
-
     problem = load_problem(run / "problem.toml")
     design = None
     if (run / "designs.npz").is_file():
-        from kgarment.design.run import load_design_history
-
         hist = load_design_history(run)
         design = hist[-1] if len(hist) else None
     attached = _load_mask(run / "attachments.npz", "attached") if (run / "attachments.npz").is_file() else None
@@ -124,8 +147,6 @@ def _load_mask(path: Path, key: str) -> np.ndarray:
 
 def load_session(folder) -> Opened:
     """Read a session folder written by :func:`save_session`."""
-    from kgarment.problem import load_problem
-
     folder = Path(folder)
     meta_path = folder / SESSION_FILE
     try:
@@ -142,7 +163,7 @@ def load_session(folder) -> Opened:
     compare = None
     if meta.get("compare"):
         with np.load(folder / meta["compare"]) as z:
-            compare = (str(z["label"]) if "label" in z.files else "B", np.asarray(z["design"]) > 0.5)
+            compare = DesignB(str(z["label"]) if "label" in z.files else "B", np.asarray(z["design"]) > 0.5)
     results = {}
     if (folder / "results.json").is_file():
         try:
@@ -154,25 +175,21 @@ def load_session(folder) -> Opened:
                   dict(meta.get("settings", {})), results)
 
 
-def problem_document(problem, has_clutches: bool) -> dict:
+def problem_document(problem: Problem, has_clutches: bool) -> dict:
     """A problem as a TOML-ready dict whose clutches are the session's ``clutches.toml``
     (relative, so the folder can move); an explicit empty list when there are none."""
-    from kgarment.problem import problem_to_dict
-
     doc = problem_to_dict(problem)
     doc["clutches"] = {"file": "clutches.toml"} if has_clutches else {"clutch": []}
     return doc
 
 
-def save_session(state, folder, settings: dict | None = None, compare: tuple | None = None,
+def save_session(state: StudioState, folder, settings: dict | None = None, compare: DesignB | None = None,
                  results: dict | None = None, run: Path | None = None) -> list[Path]:
-    """Write ``state`` (a StudioState) and the page's extras into a session folder.
+    """Write ``state`` and the page's extras into a session folder.
 
-    compare : (label, (m,) bool) design B or None; results : JSON-ready result rows;
+    compare : design B (label, (m,) bool) or None; results : JSON-ready result rows;
     run : the run folder shown in the page. Returns the written paths.
     """
-    from kgarment.clutch import save_clutches
-
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise KgarmentError(f"cannot save a session into {folder}: it is a file")
@@ -195,14 +212,14 @@ def save_session(state, folder, settings: dict | None = None, compare: tuple | N
         cfile.unlink()
     atomic_write_text(folder / "problem.toml", tomli_w.dumps(problem_document(problem, bool(specs))))
     written.append(folder / "problem.toml")
-    atomic_save_npz(folder / "design.npz", design=np.where(design, 1.0, X_MIN), reinforced=design)
+    atomic_save_npz(folder / "design.npz", design=design_values(design), reinforced=design)
     atomic_save_npz(folder / "attachments.npz", attached=attached)
     written += [folder / "design.npz", folder / "attachments.npz"]
     meta = {"format": FORMAT, "version": VERSION, "problem": "problem.toml", "design": "design.npz",
             "attachments": "attachments.npz", "settings": _toml_safe(settings or {})}
     if compare is not None:
         label, d = compare
-        atomic_save_npz(folder / "compare.npz", design=np.where(np.asarray(d, bool), 1.0, X_MIN), label=np.array(label))
+        atomic_save_npz(folder / "compare.npz", design=design_values(d), label=np.array(label))
         meta["compare"] = "compare.npz"
         written.append(folder / "compare.npz")
     if results:
@@ -234,7 +251,7 @@ def _toml_safe(d: dict) -> dict:
     return out
 
 
-def export_design(path, design: np.ndarray, garment, iteration: int | None = None) -> Path:
+def export_design(path, design: np.ndarray, garment: Garment, iteration: int | None = None) -> Path:
     """Write a design (m,) bool as an NPZ that ``kgarment simulate --design`` reads:
     design (m,) 1.0 / X_MIN, plus the garment's faces and rest vertices for reference."""
     path = Path(path)
@@ -244,6 +261,6 @@ def export_design(path, design: np.ndarray, garment, iteration: int | None = Non
     if d.shape != (garment.n_faces,):
         raise KgarmentError(f"the design has {d.size} faces, the garment {garment.n_faces}")
     extra = {} if iteration is None else {"iteration": np.array(iteration)}
-    atomic_save_npz(path, design=np.where(d, 1.0, X_MIN), faces=garment.faces,
+    atomic_save_npz(path, design=design_values(d), faces=garment.faces,
                     rest_vertices=garment.rest_vertices, **extra)
     return path

@@ -5,7 +5,7 @@ A :class:`StudioState` holds one problem's body and garment with the editable la
 - ``design`` (m,) bool, reinforced faces (the manual design, "A");
 - ``attached`` (m,) bool, faces glued to the body (starts as the garment's rings);
 - ``clutches``, a list of :class:`~kgarment.clutch.ClutchSpec` (rest coordinates);
-- the budget ``problem.design.target_area`` (share of the garment's area).
+- the budget ``problem.design.beso.target_area`` (share of the garment's area).
 
 Every edit bumps ``revision`` and marks the state ``dirty`` until it is saved; edits go
 through methods that validate first and change nothing on error, and each can be undone.
@@ -22,10 +22,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kgarment.body import Body
 from kgarment.clutch import ClutchSpec, ClutchStrip, MeshTopology
 from kgarment.clutch.errors import ClutchError
-from kgarment.design.beso import X_MIN
+from kgarment.clutch.landmarks import body_landmarks
+from kgarment.constants import BUDGET_RANGE
 from kgarment.errors import KgarmentError
+from kgarment.garment import Garment
+from kgarment.problem import Problem, clutch_specs
 from kgarment.studio import brush, placement
 
 log = logging.getLogger(__name__)
@@ -35,25 +39,25 @@ LAYERS = ("design", "attached")
 
 @dataclass(frozen=True)
 class Snapshot:
-    """The editable layers at one moment (for undo)."""
+    """The editable layers at one moment (for undo): design, attached (m,) bool;
+    clutches; target_area (the budget, share of the garment's area)."""
 
     design: np.ndarray
     attached: np.ndarray
-    clutches: tuple
+    clutches: tuple[ClutchSpec, ...]
     target_area: float
 
 
 class StudioState:
     """The editable layers of one problem (see the module docstring).
 
-    problem : kgarment.problem.Problem; body : Body; garment : Garment (its ``attached``
-    is the starting attachment layer); clutches : ClutchSpec list (default: the
-    problem's); design, attached : (m,) bool or None.
+    problem : Problem; body : Body; garment : Garment (its ``attached`` is the starting
+    attachment layer); clutches : ClutchSpec list (default: the problem's); design,
+    attached : (m,) bool or None.
     """
 
-    def __init__(self, problem, body, garment, clutches=None, design=None, attached=None):
-        from kgarment.problem import clutch_specs
-
+    def __init__(self, problem: Problem, body: Body, garment: Garment, clutches: list[ClutchSpec] | None = None,
+                 design: np.ndarray | None = None, attached: np.ndarray | None = None):
         self.lock = threading.RLock()
         self.problem = problem
         self.body = body
@@ -84,22 +88,17 @@ class StudioState:
         return self.graph.areas
 
     @property
-    def garment(self):
+    def garment(self) -> Garment:
         """The garment with the current attachment layer."""
         return dataclasses.replace(self.base_garment, attached=self.attached.copy())
 
     @property
     def budget(self) -> float:
-        return float(self.problem.design.target_area)
+        return float(self.problem.design.beso.target_area)
 
     def coverage(self) -> float:
         """Reinforced share of the garment's area, in [0, 1]."""
         return brush.coverage(self.design, self.areas)
-
-    def design_values(self, design: np.ndarray | None = None) -> np.ndarray:
-        """(m,) float64 design for the simulator: 1.0 reinforced, X_MIN soft cloth."""
-        d = self.design if design is None else np.asarray(design, bool)
-        return np.where(d, 1.0, X_MIN)
 
     def clutch_names(self) -> list[str]:
         return [c.name for c in self.clutches]
@@ -184,9 +183,10 @@ class StudioState:
             self._changed()
 
     def set_budget(self, target_area: float) -> None:
-        """The reinforced-area budget A* in [0.01, 1] (problem.design.target_area)."""
-        if not 0.01 <= float(target_area) <= 1.0:
-            raise KgarmentError(f"budget {target_area!r} is outside [0.01, 1]")
+        """The reinforced-area budget A* in BUDGET_RANGE ([0.01, 1]; problem.design.beso.target_area)."""
+        lo, hi = BUDGET_RANGE
+        if not lo <= float(target_area) <= hi:
+            raise KgarmentError(f"budget {target_area!r} is outside [{lo:g}, {hi:g}]")
         with self.lock:
             if float(target_area) != self.budget:
                 self._record()
@@ -194,8 +194,9 @@ class StudioState:
                 self._changed()
 
     def _set_budget(self, value: float) -> None:
-        d = dataclasses.replace(self.problem.design, target_area=float(value))
-        self.problem = dataclasses.replace(self.problem, design=d)
+        d = self.problem.design
+        beso = dataclasses.replace(d.beso, target_area=float(value))
+        self.problem = dataclasses.replace(self.problem, design=dataclasses.replace(d, beso=beso))
 
     # ----- clutches ---------------------------------------------------------------------
     def add_clutch(self, spec: ClutchSpec) -> ClutchStrip:
@@ -254,11 +255,9 @@ class StudioState:
         return placement.unique_name(self.clutch_names(), base)
 
 
-def _landmarks(body) -> Mapping | None:
+def _landmarks(body: Body) -> Mapping | None:
     if not body.rigged:
         return None
-    from kgarment.clutch.landmarks import body_landmarks
-
     try:
         return body_landmarks(body)
     except KgarmentError as exc:  # an unusual rig: clutches by point only

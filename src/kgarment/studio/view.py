@@ -9,7 +9,11 @@ Colour modes: "design" (reinforced / soft, attachments outlined in orange),
 
 from __future__ import annotations
 
+import matplotlib
 import numpy as np
+import trimesh
+
+from kgarment.body import vertex_normals
 
 MODES = ("design", "attachments", "strain", "energy density", "compare", "run")
 SKIN = (214, 194, 178)
@@ -55,8 +59,6 @@ def face_strain(rest: np.ndarray, faces: np.ndarray, x: np.ndarray) -> np.ndarra
 def scalar_colors(values: np.ndarray, vmin: float | None = None, vmax: float | None = None,
                   cmap: str = "viridis") -> tuple[np.ndarray, float, float]:
     """((m, 3) uint8 colours, vmin, vmax) of per-face values (m,) (range: 1st-99th percentile)."""
-    import matplotlib
-
     v = np.asarray(values, dtype=np.float64)
     finite = v[np.isfinite(v)]
     lo = float(np.percentile(finite, 1)) if vmin is None and finite.size else (vmin or 0.0)
@@ -129,8 +131,6 @@ def unwelded(vertices: np.ndarray, faces: np.ndarray, colors: np.ndarray) -> tup
 
 def glb_bytes(vertices: np.ndarray, faces: np.ndarray, colors: np.ndarray) -> bytes:
     """A GLB of a mesh (n, 3)/(m, 3) with per-face colours (m, 3) uint8 (for viser)."""
-    import trimesh
-
     v, f, c = unwelded(vertices, faces, colors)
     mesh = trimesh.Trimesh(v, f, process=False)
     mesh.visual = trimesh.visual.ColorVisuals(mesh, vertex_colors=np.concatenate(
@@ -141,6 +141,4 @@ def glb_bytes(vertices: np.ndarray, faces: np.ndarray, colors: np.ndarray) -> by
 def offset_along_normals(vertices: np.ndarray, faces: np.ndarray, distance: float) -> np.ndarray:
     """(n, 3) vertices pushed ``distance`` metres along their area-weighted normals (to draw
     the garment and clutches just above the skin)."""
-    from kgarment.body.model import vertex_normals
-
     return np.asarray(vertices) + distance * vertex_normals(np.asarray(vertices), np.asarray(faces))

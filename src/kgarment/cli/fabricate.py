@@ -2,88 +2,53 @@
 
 Cleans the design up, flattens the reinforcement into patches, and writes cut files at 1:1
 in millimetres (SVG, DXF, tiled PDF), the 3D design (GLB, OBJ, PLY), a bill of materials
-and a report; by default it also re-simulates the design before and after the clean-up and
-reports how rho ON/OFF changed.
+and a report; by default it also re-simulates the design before and after the clean-up
+(with the one design evaluator) and reports how rho ON/OFF changed.
 """
 
 from __future__ import annotations
 
-import logging
-import shutil
 import time
 from pathlib import Path
 
-import numpy as np
-
+from kgarment.cli.common import add_device
 from kgarment.errors import KgarmentError
-
-log = logging.getLogger("kgarment")
 
 
 def resolve_source(design: str, problem: str | None):
-    """(problem file, design path for ``load_design``, label, default output folder) for
-    'RUN', 'RUN@K' or a design file (which needs ``problem``)."""
-    run, _, it = design.partition("@")
-    run_dir = Path(run)
-    if run_dir.is_dir():
-        if not (run_dir / "problem.toml").is_file() and problem is None:
-            raise KgarmentError(f"{run_dir} is not a run folder (no problem.toml); give RUN, RUN@ITERATION, "
-                                "or a design file with --problem")
-        if it and not it.isdigit():
-            raise KgarmentError(f"iteration {it!r} in {design!r} must be a number")
-        pfile = Path(problem) if problem else run_dir / "problem.toml"
-        label = f"{run_dir} iteration {it}" if it else f"{run_dir} (final design)"
-        return pfile, design, label, run_dir / (f"fabrication@{it}" if it else "fabrication")
-    path = Path(design)
-    if it or not path.is_file():
-        raise KgarmentError(f"{design!r} is neither a run folder (RUN or RUN@ITERATION) nor a design file")
+    """(DesignSource, problem file, label, default output folder) for 'RUN', 'RUN@K' or a
+    design file (which needs ``problem``)."""
+    from kgarment.design import parse_design_source
+
+    src = parse_design_source(design)
+    if src.run is not None:
+        it = src.iteration
+        label = f"{src.run} iteration {it}" if it is not None else f"{src.run} (final design)"
+        out = src.run / (f"fabrication@{it}" if it is not None else "fabrication")
+        return src, Path(problem) if problem else src.run / "problem.toml", label, out
     if problem is None:
-        raise KgarmentError(f"a design file ({path.name}) needs --problem FILE (the problem it was designed for)")
-    return Path(problem), str(path), str(path), path.parent / f"{path.stem}_fabrication"
-
-
-def _check_mesh(path: str, garment) -> None:
-    """A design .npz that stores its mesh must have been made for this garment."""
-    if not path.endswith(".npz") or not Path(path).is_file():
-        return
-    with np.load(path) as z:
-        faces = z["faces"] if "faces" in z.files else None
-        rest = z["rest_vertices"] if "rest_vertices" in z.files else None
-    if faces is not None and (faces.shape != garment.faces.shape or not np.array_equal(faces, garment.faces)):
-        raise KgarmentError(f"{path} was made for another garment mesh ({len(faces)} faces) than the "
-                            f"problem's {garment.name} ({garment.n_faces} faces)")
-    if rest is not None and rest.shape == garment.rest_vertices.shape \
-            and np.abs(rest - garment.rest_vertices).max() > 1e-6:
-        raise KgarmentError(f"{path} was made on another body (its garment's rest shape differs)")
-
-
-def prepare_output(out: Path, force: bool) -> Path:
-    """Create the output folder; an existing non-empty one is replaced only with ``force``."""
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        if not force:
-            raise KgarmentError(f"output folder {out} exists; use --force to replace it")
-        shutil.rmtree(out) if out.is_dir() else out.unlink()
-    out.mkdir(parents=True, exist_ok=True)
-    return out
-
-
-def _options(args):
-    from kgarment.fabricate import CleanupOptions, FabricationOptions, PatternOptions
-
-    return FabricationOptions(
-        cleanup=CleanupOptions(args.min_island_area, args.max_hole_area, args.min_width),
-        patterns=PatternOptions(method=args.method, max_distortion=args.max_distortion, max_cuts=args.max_cuts),
-        smooth_iterations=0 if args.no_smooth else 10, sheet_width=args.sheet_width, paper=args.paper)
+        raise KgarmentError(f"a design file ({src.file.name}) needs --problem FILE (the problem it was designed for)")
+    return src, Path(problem), str(src.file), src.file.parent / f"{src.file.stem}_fabrication"
 
 
 def cmd_fabricate(args) -> int:
-    from kgarment.fabricate import fabricate, write_fabrication
+    from kgarment.design import Evaluator, load_design
+    from kgarment.fabricate import (
+        FabricationOptions,
+        check_design_mesh,
+        fabricate,
+        write_fabrication,
+    )
+    from kgarment.fabricate.cleanup import CleanupOptions
+    from kgarment.fabricate.patterns import PatternOptions
+    from kgarment.io import prepare_output_folder
     from kgarment.problem import build_body, build_clutches, build_garment, load_problem
-    from kgarment.simulate import load_design
 
-    logging.getLogger("ezdxf").setLevel(logging.WARNING)
-    pfile, dpath, label, default_out = resolve_source(args.design, args.problem)
-    options = _options(args)
+    src, pfile, label, default_out = resolve_source(args.design, args.problem)
+    options = FabricationOptions(
+        cleanup=CleanupOptions(args.min_island_area, args.max_hole_area, args.min_width),
+        patterns=PatternOptions(method=args.method, max_distortion=args.max_distortion, max_cuts=args.max_cuts),
+        smooth_iterations=0 if args.no_smooth else 10, sheet_width=args.sheet_width, paper=args.paper)
     p = load_problem(pfile)
     out = Path(args.out) if args.out else default_out
     if out.exists() and any(out.iterdir()) and not args.force:  # fail before the slow part
@@ -92,8 +57,9 @@ def cmd_fabricate(args) -> int:
     body = build_body(p)
     garment = build_garment(p, body)
     strips = build_clutches(p, body, garment)
-    design = load_design(dpath, garment.n_faces)
-    _check_mesh(dpath, garment)
+    design = load_design(src, garment.n_faces)
+    if src.file is not None:
+        check_design_mesh(src.file, garment)
     print(f"design: {label}: {100 * (design > 0.5).mean():.1f}% of {garment.n_faces} faces of {garment.name} "
           f"reinforced; {len(strips)} clutches")
     fab = fabricate(garment, strips, design, options, title=f"kgarment {garment.name} - {label}")
@@ -102,16 +68,15 @@ def cmd_fabricate(args) -> int:
           f"{c.islands_removed} islands removed; reinforced {1e4 * c.area_before:.1f} -> {1e4 * c.area_after:.1f} cm^2")
     evaluation = None
     if not args.no_resimulate:
-        from kgarment.cli_design import evaluate_design
-
         print("re-simulating the design before and after the clean-up ...")
-        before = evaluate_design(p, design, args.device)
-        after = before if c.changed_faces == 0 else evaluate_design(p, fab.clean_design, args.device)
+        ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device)
+        before = [s.row() for s in ev.evaluate(design).states]
+        after = before if c.changed_faces == 0 else [s.row() for s in ev.evaluate(fab.clean_design).states]
         evaluation = (before, after)
         for b, a in zip(before, after):
             flag = "" if b["converged"] and a["converged"] else "  (NOT converged)"
             print(f"  rho {b['motion']:22s} {b['state']:5s} {b['rho']:7.3f} -> {a['rho']:7.3f}{flag}")
-    prepare_output(out, args.force)
+    prepare_output_folder(out, args.force)
     files = write_fabrication(fab, out, evaluation)
     print(f"{len(fab.patterns.patches)} patches, {len(fab.patterns.seams)} seams, {time.time() - t0:.1f} s:")
     limit = options.patterns.max_distortion
@@ -126,9 +91,7 @@ def cmd_fabricate(args) -> int:
     return 0
 
 
-def add_parser(sub, common=None) -> None:
-    """Add ``fabricate`` to the ``kgarment`` sub-commands (``common`` is not used: the
-    positional argument is the design, not a problem)."""
+def add_parsers(sub) -> None:
     sp = sub.add_parser("fabricate", help="clean a design up and write cut files (SVG, DXF, PDF), 3D files and a BOM")
     sp.add_argument("design", help="run folder (its final design), RUN@ITERATION, or a design file (.npz/.npy/.txt) "
                                    "with --problem")
@@ -137,7 +100,7 @@ def add_parser(sub, common=None) -> None:
     sp.add_argument("--out", help="output folder (default RUN/fabrication, RUN/fabrication@K, or DESIGN_fabrication)")
     sp.add_argument("--force", action="store_true", help="replace an existing output folder")
     sp.add_argument("--no-resimulate", action="store_true", help="skip re-simulating rho before/after the clean-up")
-    sp.add_argument("--device", default="cpu", help="torch device for the re-simulation (default cpu)")
+    add_device(sp)
     g = sp.add_argument_group("clean-up (SI units; 0 switches a step off)")
     g.add_argument("--min-island-area", type=float, default=4e-4, metavar="M2",
                    help="remove islands of reinforcement smaller than this, m^2 (default 4e-4 = 4 cm^2)")

@@ -2,19 +2,17 @@
 
 from __future__ import annotations
 
-import logging
 import time
 from pathlib import Path
 
+from kgarment.cli.common import add_device
 from kgarment.errors import KgarmentError
-
-log = logging.getLogger("kgarment")
 
 
 def cmd_reproduce(args) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from kgarment.reproduce.experiments import RESOLUTIONS, select
+    from kgarment.reproduce.catalog import RESOLUTIONS, select
     from kgarment.reproduce.pipeline import reproduce
     from kgarment.reproduce.report import write_report
 
@@ -49,8 +47,8 @@ def cmd_reproduce(args) -> int:
     return 0
 
 
-def add_parser(sub, common) -> None:
-    from kgarment.reproduce.experiments import EXPERIMENTS, RESOLUTIONS
+def add_parsers(sub) -> None:
+    from kgarment.reproduce.catalog import EXPERIMENTS, RESOLUTIONS
 
     sp = sub.add_parser("reproduce", help="run every design experiment of the paper with baselines; "
                         "write an HTML + Markdown report")
@@ -64,5 +62,5 @@ def add_parser(sub, common) -> None:
     sp.add_argument("--out", default="runs/reproduce", help="output folder (default runs/reproduce)")
     sp.add_argument("--experiments", help="comma-separated subset of experiments (default: all)")
     sp.add_argument("--report-only", action="store_true", help="rewrite the report from OUT/results.json")
-    sp.add_argument("--device", default="cpu", help="torch device (default cpu)")
+    add_device(sp)
     sp.set_defaults(func=cmd_reproduce)

@@ -1,0 +1,7 @@
+"""``python -m kgarment.cli``."""
+
+import sys
+
+from kgarment.cli import main
+
+sys.exit(main())

@@ -1,0 +1,110 @@
+"""What the commands share: the problem argument and its overrides, the device, the
+activation syntax, the design progress bar and output checks."""
+
+from __future__ import annotations
+
+import math
+from contextlib import contextmanager
+
+from kgarment.errors import KgarmentError
+
+DEFAULT_PROBLEM_HELP = "problem file (TOML); default: the built-in three-motion shirt"
+
+
+def add_problem(sp, help: str = DEFAULT_PROBLEM_HELP) -> None:
+    sp.add_argument("problem", nargs="?", help=help)
+
+
+def add_device(sp) -> None:
+    sp.add_argument("--device", default="cpu", help="torch device for numerical work (default cpu)")
+
+
+def add_overrides(sp, *, motion: bool = True, garment: bool = True, subdivision: bool = True,
+                  materials: bool = False, solver: bool = False, max_iterations: bool = False) -> None:
+    """Flags that override fields of the problem file (validated like the file's)."""
+    if motion:
+        sp.add_argument("--motion", action="append", help="motion (repeatable); default: the problem's motions")
+    if garment:
+        sp.add_argument("--garment", help="garment template name (overrides the problem's)")
+    if subdivision:
+        sp.add_argument("--subdivision", type=int, help="garment subdivision level 0-3 (resolution)")
+    if materials:
+        sp.add_argument("--preset", help="material preset: paper or reference (default: the problem's [materials])")
+    if solver:
+        sp.add_argument("--solver", help="solver: newton or lbfgs (default: the problem's [solver] method)")
+        sp.add_argument("--tol", type=float, help="solver tolerance (scaled force residual; default: the problem's "
+                                                  "[solver] tol, capped at the evaluation tolerance 1e-4)")
+    if max_iterations:
+        sp.add_argument("--max-iterations", type=int, help="stop after this many iterations")
+
+
+def overrides(args) -> dict:
+    """The problem overrides given on the command line (``kgarment.problem.override``)."""
+    return {"motions": getattr(args, "motion", None), "template": getattr(args, "garment", None),
+            "subdivision": getattr(args, "subdivision", None), "preset": getattr(args, "preset", None),
+            "method": getattr(args, "solver", None), "tol": getattr(args, "tol", None),
+            "max_iterations": getattr(args, "max_iterations", None)}
+
+
+def load(args):
+    """The problem of the command: its file (or the built-in default) with the flags'
+    overrides."""
+    from kgarment.problem import Problem, load_problem, override
+
+    p = load_problem(args.problem) if getattr(args, "problem", None) else Problem()
+    return override(p, **overrides(args))
+
+
+def parse_activation(text: str, n_clutches: int) -> tuple[float, ...]:
+    """'on' (all 1), 'off' (all 0), or K comma-separated values in [0, 1] ('1,0,0.5')."""
+    if text == "on":
+        return (1.0,) * n_clutches
+    if text == "off":
+        return (0.0,) * n_clutches
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = ()
+    if len(vals) != n_clutches or not all(0.0 <= v <= 1.0 for v in vals):
+        raise KgarmentError(f"clutch activation {text!r}: give on, off, or {n_clutches} comma-separated values in [0, 1]")
+    return vals
+
+
+def expected_iterations(beso) -> int:
+    """About how many iterations a BESO run takes (for the progress bar's ETA)."""
+    return math.ceil(math.log(beso.target_area) / math.log(1 - beso.er)) + 2 * beso.window
+
+
+def rho_line(row: dict, motions) -> str:
+    """One line for a metrics row: area, objective, rho ON/OFF per motion."""
+    rho = "  ".join(f"{m} {row.get(f'rho[{m}:on]', row.get(f'rho[{m}:none]', float('nan'))):.2f}"
+                    + (f"/{row[f'rho[{m}:off]']:.2f}" if f"rho[{m}:off]" in row else "") for m in motions)
+    return f"area {100 * row['area']:5.1f}%  objective {row['objective']:8.4f}  rho {rho}"
+
+
+@contextmanager
+def design_progress(total: int, start: int, motions, quiet: bool):
+    """A progress bar over design iterations; yields ``update(state)`` for the driver."""
+    import logging
+
+    from rich.progress import (
+        BarColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    log = logging.getLogger("kgarment")
+    with Progress(TextColumn("[bold]it {task.completed:>3}"), BarColumn(), TextColumn("{task.description}"),
+                  TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), disable=quiet) as bar:
+        task = bar.add_task("starting", total=total, completed=start)
+
+        def update(st) -> None:
+            row = st.metrics[-1]
+            bar.update(task, completed=row["iteration"] + 1, description=rho_line(row, motions),
+                       total=max(total, row["iteration"] + 2))
+            if row["unconverged_states"]:
+                log.warning("iteration %d: states not converged: %s", row["iteration"], row["unconverged_states"])
+
+        yield update

@@ -1,0 +1,141 @@
+"""``kgarment design | evaluate | demo``: the design loop on the command line."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from kgarment.cli.common import (
+    add_device,
+    add_overrides,
+    add_problem,
+    design_progress,
+    expected_iterations,
+    load,
+    rho_line,
+)
+from kgarment.errors import KgarmentError
+
+DEMO_EXAMPLE = "shirt_three_motions"
+
+
+def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: bool) -> int:
+    """Open (or resume) a run folder, iterate with a progress bar, print the summary."""
+    from kgarment.design import finish, open_run
+
+    dr = open_run(None if resume else problem, out, resume=resume, force=force, device=device)
+    print(dr.problem.describe())
+    setup = dr.setup
+    print(f"garment {dr.garment.name}: {dr.garment.n_faces} faces, {len(dr.strips)} clutches, "
+          f"{len(setup.states())} states per iteration ({setup.solver.workers} worker processes); run folder {dr.run}")
+    motions = list(setup.motions)
+    last = [dr.state]
+    t0 = time.time()
+    with design_progress(expected_iterations(setup.params), dr.state.iteration, motions, quiet) as update:
+        def progress(st):
+            last[0] = st
+            update(st)
+
+        try:
+            dr = finish(dr, progress=progress)
+        except KeyboardInterrupt:
+            print(f"\ninterrupted after iteration {last[0].iteration - 1}; continue with: "
+                  f"kgarment design --resume {dr.run}")
+            return 130
+    print_summary(dr, time.time() - t0)
+    return 0
+
+
+def print_summary(dr, seconds: float) -> None:
+    st = dr.state
+    row = st.metrics[-1]
+    print(f"\n{len(st.metrics)} iterations in {seconds:.0f} s; final {rho_line(row, list(dr.setup.motions))}")
+    print(f"islands {row['islands']} ({row['islands_with_clutches']} counting clutches as links); "
+          f"clutch ends on reinforcement {row['clutch_ends_supported']}/{row['clutch_ends']}")
+    print(f"results in {dr.run}/: metrics.csv, metrics.json, progress.png, designs.npz, final/")
+    for path in dr.paths:
+        print(f"  {path}")
+
+
+def cmd_design(args) -> int:
+    problem = None if args.resume else load(args)
+    return run_design(problem, args.resume or args.out, resume=bool(args.resume), force=args.force,
+                      device=args.device, quiet=args.quiet)
+
+
+def cmd_demo(args) -> int:
+    """The main job: design the three-motion shirt (resumes or reports an existing run)."""
+    from kgarment.design import run_status
+    from kgarment.problem import example_path, load_problem, override
+
+    out = Path(args.out)
+    status = run_status(out)
+    if status == "finished" and not args.force:
+        print(f"{out} already holds a finished design (use --force to redo it); results:")
+        for f in [out / "metrics.csv", out / "progress.png"] + sorted((out / "final").glob("*")):
+            print(f"  {f}")
+        return 0
+    resume = status == "unfinished" and not args.force
+    if resume:
+        print(f"resuming the unfinished run in {out}")
+    problem = override(load_problem(example_path(DEMO_EXAMPLE)), subdivision=args.subdivision,
+                       max_iterations=args.max_iterations)
+    return run_design(problem, out, resume=resume, force=args.force, device=args.device, quiet=args.quiet)
+
+
+def cmd_evaluate(args) -> int:
+    import json
+
+    from kgarment.design import Evaluator, load_design, parse_design_source
+    from kgarment.design.run import iteration_of
+    from kgarment.io import atomic_write_text
+    from kgarment.problem import load_problem, override
+
+    src = parse_design_source(args.design, run_required=True)
+    p = override(load_problem(src.run / "problem.toml"), motions=args.motion)
+    k = iteration_of(src)
+    if args.json and Path(args.json).is_dir():
+        raise KgarmentError(f"--json {args.json} is a folder; give a file name")
+    ev = Evaluator.from_problem(p, device=args.device)
+    design = load_design(src, ev.n_faces)
+    print(f"design: {src.run} iteration {k} ({100 * (design > 0.5).mean():.1f}% of faces reinforced)")
+    res = ev.evaluate(design)
+    print(f"{'motion':24s} {'state':6s} {'rho':>7s} {'E design (J)':>13s} {'E full (J)':>11s}")
+    for r in res.states:
+        flag = "" if r.converged else "  (NOT converged)"
+        print(f"{r.motion:24s} {r.state:6s} {r.rho:7.3f} {r.energy:13.5g} {r.energy_full:11.5g}{flag}")
+    print(f"reinforced area {100 * res.area:.1f}%; islands {res.islands} ({res.islands_with_clutches} counting "
+          f"clutches as links); clutch ends on reinforcement {res.clutch_ends_supported}/{res.clutch_ends}")
+    if args.json:
+        doc = {"run": str(src.run), "iteration": k, **res.to_json()}
+        atomic_write_text(args.json, json.dumps(doc, indent=1))
+        print(f"wrote {args.json}")
+    return 0
+
+
+def add_parsers(sub) -> None:
+    sp = sub.add_parser("design", help="automatic design (BESO) of the reinforcement; checkpoints every iteration")
+    add_problem(sp)
+    add_device(sp)
+    add_overrides(sp, max_iterations=True)
+    sp.add_argument("--out", default="runs/design", help="run folder (default runs/design)")
+    sp.add_argument("--resume", metavar="RUN", help="continue a run folder where it stopped")
+    sp.add_argument("--force", action="store_true", help="replace an existing run folder")
+    sp.set_defaults(func=cmd_design)
+
+    sp = sub.add_parser("evaluate", help="evaluate a design (any iteration of a run) on any motions: rho ON/OFF")
+    sp.add_argument("design", help="run folder (its final design) or RUN@ITERATION")
+    sp.add_argument("--motion", action="append", help="motion to evaluate on (repeatable); default: the run's")
+    sp.add_argument("--json", help="also write the results as JSON to this file")
+    add_device(sp)
+    sp.set_defaults(func=cmd_evaluate)
+
+    sp = sub.add_parser("demo", help=f"the main job: design the three-motion shirt ({DEMO_EXAMPLE}.toml, "
+                                     "see kgarment examples)")
+    add_device(sp)
+    sp.add_argument("--out", default="runs/demo", help="run folder (default runs/demo); an unfinished run is resumed")
+    sp.add_argument("--subdivision", type=int, default=0,
+                    help="garment resolution (default 0; 1 is the default elsewhere, 2 matches the paper)")
+    sp.add_argument("--max-iterations", type=int, help="stop after this many iterations")
+    sp.add_argument("--force", action="store_true", help="start over, replacing the run folder")
+    sp.set_defaults(func=cmd_demo)

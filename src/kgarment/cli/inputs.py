@@ -1,0 +1,123 @@
+"""``kgarment motions | garments | examples | render | clutches``: the inputs of a design."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from kgarment.cli.common import add_device, add_overrides, add_problem, load
+from kgarment.errors import KgarmentError
+
+
+def cmd_motions(args) -> int:
+    from kgarment.body.motions import PAPER_MOTIONS
+
+    for name, m in load(args).library().all().items():
+        tag = " (paper)" if name in PAPER_MOTIONS else ""
+        print(f"{name:24s} {m.description}{tag}")
+    return 0
+
+
+def cmd_garments(args) -> int:
+    from kgarment.garment import ALIASES, builtin_templates
+
+    for name, t in builtin_templates().items():
+        print(f"{name:22s} {t.description}")
+    for a, b in ALIASES.items():
+        print(f"{a:22s} = {b}")
+    return 0
+
+
+def cmd_examples(args) -> int:
+    from kgarment.problem import example_files, example_title
+
+    for f in example_files():
+        print(f"{str(f):60s} {example_title(f)}")
+    return 0
+
+
+def cmd_render(args) -> int:
+    import logging
+    import time
+
+    from kgarment.problem import build_body, build_clutches, build_garment
+    from kgarment.render import render_poses
+
+    p = load(args)
+    print(p.describe())
+    t0 = time.time()
+    body = build_body(p)
+    garment = build_garment(p, body)
+    strips = build_clutches(p, body, garment)
+    logging.getLogger("kgarment").info("body %d vertices, garment %s: %d faces (%.3f m^2), %.1f s", body.n_vertices,
+                                       garment.name, garment.n_faces, garment.face_areas().sum(), time.time() - t0)
+    for path in render_poses(Path(args.out), body, garment, strips, p.motions, tuple(args.views)):
+        print(f"wrote {path}")
+    return 0
+
+
+def cmd_clutches(args) -> int:
+    from kgarment.clutch import build_clutch, save_clutches
+    from kgarment.clutch.suggest import suggest_clutches
+    from kgarment.problem import build_body, build_clutches, build_garment
+    from kgarment.render import render_scene
+
+    p = load(args)
+    print(p.describe())
+    body = build_body(p)
+    garment = build_garment(p, body)
+    out = Path(args.out)
+    if args.action == "suggest":
+        specs = suggest_clutches(garment, count=args.count, length=args.length)
+        strips = [build_clutch(s, garment.rest_vertices, garment.faces) for s in specs]
+        name = "suggested"
+    else:
+        strips = build_clutches(p, body, garment)
+        specs = strips
+        name = "clutches"
+    cfile = out / f"{name}.toml"
+    if cfile.exists() and not args.force:
+        raise KgarmentError(f"{cfile} exists; use --force to overwrite it")
+    out.mkdir(parents=True, exist_ok=True)
+    save_clutches(cfile, specs, garment.rest_vertices, garment.faces)
+    png = render_scene(out / f"{name}.png", body.rest_vertices, body.faces, garment.rest_vertices, garment.faces,
+                       garment.attached, clutches=[(c.vertices, c.faces) for c in strips],
+                       views=("front", "back", "left", "right"), title=f"{garment.name}: {name}")
+    for c in strips:
+        a, b = c.vertices[c.centerline[0]], c.vertices[c.centerline[-1]]
+        print(f"  {c.name:18s} {100 * c.length:5.1f} cm x {100 * c.width:.1f} cm  from {a.round(3)} to {b.round(3)}")
+    print(f"wrote {cfile} (portable: rest coordinates) and {png}")
+    return 0
+
+
+def add_parsers(sub) -> None:
+    from kgarment.render.raster import STANDARD_VIEWS, VIEWS
+
+    sp = sub.add_parser("motions", help="list the motion library (built-in and the problem's own)")
+    add_problem(sp)
+    add_device(sp)
+    sp.set_defaults(func=cmd_motions)
+
+    sp = sub.add_parser("garments", help="list the garment templates")
+    sp.set_defaults(func=cmd_garments)
+
+    sp = sub.add_parser("examples", help="list the example problem files (one per experiment of the paper)")
+    sp.set_defaults(func=cmd_examples)
+
+    sp = sub.add_parser("render", help="render body, garment and attachments for each motion to PNG")
+    add_problem(sp)
+    add_device(sp)
+    add_overrides(sp)
+    sp.add_argument("--views", nargs="+", default=list(STANDARD_VIEWS), choices=list(VIEWS), help="views to draw")
+    sp.add_argument("--out", default="runs/render", help="output folder (default runs/render)")
+    sp.set_defaults(func=cmd_render)
+
+    sp = sub.add_parser("clutches", help="show the problem's clutches, or suggest placements over high strain")
+    sp.add_argument("action", choices=("show", "suggest"), help="show: build and draw the problem's clutches; "
+                    "suggest: propose clutches over the most stretched spots")
+    add_problem(sp)
+    add_device(sp)
+    sp.add_argument("--count", type=int, default=3, help="suggest: number of clutches (default 3)")
+    sp.add_argument("--length", type=float, default=0.10, help="suggest: clutch length in metres (default 0.10)")
+    sp.add_argument("--out", default="runs/clutches", help="output folder (default runs/clutches)")
+    sp.add_argument("--force", action="store_true", help="overwrite an existing clutch file")
+    sp.set_defaults(func=cmd_clutches)

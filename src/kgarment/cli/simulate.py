@@ -1,0 +1,54 @@
+"""``kgarment simulate``: equilibria of a design under one clutch activation."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from kgarment.cli.common import add_device, add_overrides, add_problem, load, parse_activation
+from kgarment.errors import KgarmentError
+
+
+def cmd_simulate(args) -> int:
+    import numpy as np
+
+    from kgarment.design import Evaluator, load_design
+    from kgarment.design.report import write_equilibrium
+    from kgarment.problem import build_body, build_clutches, build_garment
+
+    p = load(args)
+    print(p.describe())
+    out = Path(args.out)
+    motions = list(args.motion or p.motions)
+    if any((out / f"{m}.ply").exists() for m in motions) and not args.force:
+        raise KgarmentError(f"{out} already holds results; use --force to overwrite them")
+    body = build_body(p)
+    garment = build_garment(p, body)
+    strips = build_clutches(p, body, garment)
+    design = load_design(args.design, garment.n_faces) if args.design else np.ones(garment.n_faces)
+    ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device)
+    g = parse_activation(args.clutches, ev.setup.n_clutches)
+    keyed = ev.activation_states(g, motions, label=args.clutches)
+    results = ev.equilibria(design, keyed)
+    print(f"solver: {ev.setup.solver.method}, tolerance {ev.setup.solver.tol:g}, materials {p.materials.preset}")
+    for ((m, _), _), r in zip(keyed, results):
+        files = write_equilibrium(out, m, body.vertices(m), body.faces, ev.setup.model, r, g,
+                                  f"{garment.name} - {m} - clutches {args.clutches}")
+        c = r.convergence
+        terms = ", ".join(f"{k} {v:.3g}" for k, v in r.energy.items())
+        print(f"{m}: {'converged' if c.converged else 'NOT CONVERGED'} in {c.iterations} iterations, "
+              f"{c.wall_time:.1f} s; energy {r.total_energy:.4g} J ({terms})")
+        print(f"  wrote {files[0]} and {files[-1]}")
+    return 0 if all(r.converged for r in results) else 1
+
+
+def add_parsers(sub) -> None:
+    sp = sub.add_parser("simulate", help="equilibrium of the garment (and clutches) on the posed body")
+    add_problem(sp)
+    add_device(sp)
+    add_overrides(sp, materials=True, solver=True)
+    sp.add_argument("--clutches", default="on", help="activation: on, off, or one value in [0, 1] per clutch (1,0,0.5)")
+    sp.add_argument("--design", help="per-face design: .npy/.npz/.txt file, a run folder or RUN@ITERATION; "
+                                     "default: fully reinforced")
+    sp.add_argument("--out", default="runs/simulate", help="output folder (default runs/simulate)")
+    sp.add_argument("--force", action="store_true", help="overwrite existing results")
+    sp.set_defaults(func=cmd_simulate)

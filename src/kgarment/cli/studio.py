@@ -1,0 +1,46 @@
+"""``kgarment studio``: the interactive design page (viser) on a problem, run or session."""
+
+from __future__ import annotations
+
+import time
+
+from kgarment.cli.common import add_device, add_overrides, add_problem, overrides
+from kgarment.errors import KgarmentError
+
+
+def cmd_studio(args) -> int:
+    try:
+        import viser  # noqa: F401
+    except ImportError:
+        raise KgarmentError("the studio needs viser: pip install -e '.[studio]'") from None
+    from kgarment.studio import Studio, read_source
+
+    opened = read_source(args.problem).with_overrides(**overrides(args))
+    print(opened.problem.describe())
+    studio = Studio(opened, host=args.host, port=args.port, session=args.session, runs=args.runs, device=args.device)
+    print(f"kgarment studio: open {studio.url} in a browser (Ctrl-C stops the server)")
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        if studio.state.dirty:
+            print("kgarment studio: stopped with unsaved changes")
+        return 0
+    finally:
+        studio.stop()
+
+
+def add_parsers(sub) -> None:
+    sp = sub.add_parser("studio", help="interactive design page in the browser: view, place clutches, paint, "
+                        "simulate, optimise (viser)")
+    add_problem(sp, "problem file, design run folder or studio session folder; default: the three-motion shirt")
+    add_device(sp)
+    add_overrides(sp)
+    sp.description = ("Serve the studio page for PROBLEM (a problem file), RUN (a design run folder) or a studio "
+                      "session folder; without one, the built-in three-motion shirt.")
+    sp.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1: this machine only)")
+    sp.add_argument("--port", type=int, default=8080, help="port (default 8080)")
+    sp.add_argument("--session", help="folder that Save writes the session to (default: the opened session)")
+    sp.add_argument("--runs", default="runs/studio", help="where optimisations started from the page write their "
+                    "run folders (default runs/studio)")
+    sp.set_defaults(func=cmd_studio)

@@ -1,0 +1,48 @@
+"""Every tolerance, margin, default and range kgarment uses, in one place (SI units).
+
+Other modules import these names instead of repeating the numbers: the problem file's
+defaults and validation ranges (:mod:`kgarment.problem`), the simulator's library default
+(:class:`kgarment.sim.SolverOptions`), the design loop's "target reached" test and the
+evaluation tolerance all read them from here.
+"""
+
+from __future__ import annotations
+
+# ----- design variable (method.md section 6) ------------------------------------------------
+X_MIN = 1e-3      # soft-kill minimum: the design value of plain cloth
+PENALTY = 1.6     # material interpolation exponent p: Y(d) = d^p Y1 + (1 - d^p) Y0
+
+# ----- solver tolerances: the scaled force residual of kgarment.sim.options --------------------
+SOLVER_TOL = 1e-5      # a direct kgarment.sim.solve_states call (the library default)
+DESIGN_TOL = 1e-3      # [solver] tol: iteration 0 and every iteration at A* (why: problem.spec.SolverSpec)
+EVOLUTION_TOL = 1e-2   # [solver] evolution_tol: iterations whose target area still shrinks towards A*
+EVALUATION_TOL = 1e-4  # evaluations (evaluate, simulate, studio, reproduce, fabricate) solve to
+                       # min([solver] tol, EVALUATION_TOL)
+MAX_NEWTON = 200       # [solver] max_iter: Newton iterations per state
+MAX_WORKERS = 8        # [solver] workers = 0 means one process per core, at most this many
+
+# ----- BESO (method.md section 6; the paper's values) -----------------------------------------
+TARGET_AREA = 0.15     # A*, the reinforced share of the garment's area (0.20 for the sleeves)
+ER = 0.015             # evolution ratio: the target area shrinks by this share per iteration
+AR_MAX = 0.015         # at most this share of the faces is added per iteration
+FILTER_RADIUS = 0.02   # metres, the "radius" filter's reach
+CONVERGENCE_TOL = 1e-3  # relative change of the objective over `window` iterations
+WINDOW = 5
+MAX_ITERATIONS = 200
+# "target reached": |area - A*| <= TARGET_MARGIN + er * A* (one BESO step plus the
+# granularity of whole faces)
+TARGET_MARGIN = 0.005
+
+# ----- validation ranges of the problem file: (low, high), both allowed -------------------------
+DESIGN_RANGES = {"target_area": (0.01, 1.0), "er": (1e-4, 0.5), "ar_max": (1e-4, 1.0), "radius": (1e-4, 1.0),
+                 "tol": (0.0, 1.0), "window": (1, 100), "max_iterations": (1, 100000),
+                 "protect_clutch_margin": (0.0, 0.2)}
+SOLVER_RANGES = {"tol": (1e-14, 1.0), "evolution_tol": (1e-14, 1.0), "max_iter": (1, 100000), "workers": (0, 256)}
+SUBDIVISIONS = (0, 1, 2, 3)
+BUDGET_RANGE = DESIGN_RANGES["target_area"]   # the studio's budget slider
+
+
+def target_reached(area: float, target: float, er: float) -> bool:
+    """Whether a reinforced area share ``area`` counts as the target ``target`` (A*)."""
+    return abs(area - target) <= TARGET_MARGIN + er * target
+

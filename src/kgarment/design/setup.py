@@ -1,0 +1,143 @@
+"""The design loop's precomputed, frozen setup: model, motions, objective, BESO parameters,
+solver options, filter, adjacency and the faces under every clutch end.
+
+Built once per run (:func:`setup_from_problem` for a problem, :meth:`DesignSetup.build`
+from parts); the loop, the evaluator and the final report only read it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from kgarment.design.beso import one_ring_filter, radius_filter
+from kgarment.design.objective import states_needed
+from kgarment.garment import Garment
+from kgarment.garment.topology import face_adjacency, triangle_areas
+from kgarment.problem import BesoParams, Problem, build_model, solver_options
+from kgarment.sim import Motion, SimModel, SimState, SolverOptions, garment_motions
+
+StateKey = tuple[str, str]  # (motion, "on" | "off" | "none")
+ACTIVATION = {"on": 1.0, "off": 0.0, "none": 0.0}
+
+
+@dataclass(frozen=True)
+class ClutchEnds:
+    """The garment faces under one clutch's two ends (the faces its anchors bind to).
+
+    a, b : (3,) int face ids under end A (the start) and end B.
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+
+
+@dataclass(frozen=True)
+class DesignSetup:
+    """Everything the loop needs, precomputed once.
+
+    model : SimModel (garment + clutches);  motions : {name: Motion};
+    objective : "active" | "passive" | "compliance";  params : BesoParams;
+    solver : SolverOptions of iteration 0 and of every iteration at A* (and of evaluations);
+    evolution_solver : the options while the target area still shrinks towards A* (None:
+    ``solver``; see ``kgarment.problem.SolverSpec``);  protected : (m,) bool faces kept
+    reinforced, or None;  areas : (m,) rest face areas, m^2;  filter_matrix : (m, m) CSR
+    sensitivity filter;  adjacency : (m, m) CSR face adjacency;  ends : one ClutchEnds per
+    clutch;  clutch_area : total rest area of the clutches, m^2 (0 for the passive objective).
+    """
+
+    model: SimModel
+    motions: dict[str, Motion]
+    objective: str
+    params: BesoParams
+    solver: SolverOptions
+    evolution_solver: SolverOptions | None
+    protected: np.ndarray | None
+    areas: np.ndarray = field(repr=False)
+    filter_matrix: sp.csr_matrix = field(repr=False)
+    adjacency: sp.csr_matrix = field(repr=False)
+    ends: tuple[ClutchEnds, ...] = ()
+    clutch_area: float = 0.0
+
+    @classmethod
+    def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
+              solver: SolverOptions, evolution_solver: SolverOptions | None = None,
+              protected: np.ndarray | None = None) -> DesignSetup:
+        """Precompute areas, filter, adjacency and clutch ends for ``model``."""
+        X, F = model.garment_rest, model.garment_faces
+        areas = triangle_areas(X, F)
+        if params.filter == "radius":
+            filt = radius_filter(X[F].mean(1), areas, params.radius)
+        else:
+            filt = one_ring_filter(F, areas, len(X))
+        ends = []
+        for c in model.clutches:
+            a, bind = np.asarray(c.anchors), np.asarray(c.bind_face)
+            ends.append(ClutchEnds(bind[a[[0, 1, 2]]], bind[a[[3, 4, 5]]]))
+        clutch_area = sum(float(triangle_areas(c.vertices, c.faces).sum()) for c in model.clutches)
+        return cls(model, dict(motions), objective, params, solver, evolution_solver, protected, areas, filt,
+                   face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0)
+
+    @property
+    def n_clutches(self) -> int:
+        return len(self.model.clutches)
+
+    @property
+    def end_faces(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """[(faces under end A, faces under end B)] per clutch (the metrics' links)."""
+        return [(e.a, e.b) for e in self.ends]
+
+    def states(self, motions=None) -> list[tuple[StateKey, SimState]]:
+        """[((motion, state), SimState)] the objective needs, for ``motions`` (default all)."""
+        out = []
+        for name in motions or self.motions:
+            for s in states_needed(self.objective):
+                g = ACTIVATION[s] * np.ones(self.n_clutches)
+                out.append(((name, s), SimState.create(self.motions[name], g, name=f"{name}[{s}]")))
+        return out
+
+    def options(self, iteration: int, target: float) -> SolverOptions:
+        """The solver options of an iteration: ``evolution_solver`` from iteration 1 while the
+        target area differs from A*, ``solver`` otherwise."""
+        if self.evolution_solver is not None and iteration > 0 and target != self.params.target_area:
+            return self.evolution_solver
+        return self.solver
+
+
+def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose: str = "design",
+                       device: str = "cpu", objective: str | None = None) -> DesignSetup:
+    """The setup of ``problem`` on a built body, garment (its attachments are held) and clutch
+    strips, for the problem's motions.
+
+    purpose : "design" (a run: ``[solver] tol``, and ``evolution_tol`` while the target
+    shrinks) or "evaluate" (measuring designs: ``min(tol, EVALUATION_TOL)`` throughout;
+    :func:`kgarment.problem.solver_options`);  objective : overrides the problem's (the
+    reproduction evaluates every design ON and OFF).
+    """
+    if objective is not None and objective != problem.design.objective:
+        problem = dataclasses.replace(problem, design=dataclasses.replace(problem.design, objective=objective))
+    d = problem.design
+    model = build_model(problem, garment, strips)
+    use = list(model.clutches)
+    if purpose == "design":
+        solver, evolution = solver_options(problem, "design", device), solver_options(problem, "evolution", device)
+    else:
+        solver, evolution = solver_options(problem, "evaluate", device), None
+    return DesignSetup.build(model, garment_motions(body, garment, problem.motions), d.objective, d.beso, solver,
+                             evolution_solver=evolution,
+                             protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin))
+
+
+def protected_faces(garment: Garment, strips, attachments: bool, margin: float) -> np.ndarray | None:
+    """(m,) bool faces kept reinforced: attachment rings and/or faces whose centroid is
+    within ``margin`` metres of a clutch anchor; None when nothing is protected."""
+    keep = garment.attached.copy() if attachments else np.zeros(garment.n_faces, bool)
+    if margin > 0 and strips:
+        cent = garment.rest_vertices[garment.faces].mean(axis=1)
+        anchors = np.concatenate([c.vertices[c.anchors] for c in strips])
+        d = np.linalg.norm(cent[:, None, :] - anchors[None, :, :], axis=2).min(axis=1)
+        keep |= d <= margin
+    return keep if keep.any() else None

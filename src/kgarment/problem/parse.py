@@ -1,0 +1,283 @@
+"""Problem files (TOML) to :class:`~kgarment.problem.spec.Problem` and back.
+
+Every field is validated once, here, with a message naming the field and what is allowed
+(ranges from :mod:`kgarment.constants`).  Relative paths are relative to the problem file.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from dataclasses import asdict
+from pathlib import Path
+
+from kgarment import constants as C
+from kgarment.body import Motion, MotionLibrary, Phenotype, Rotation
+from kgarment.body.motions import NAMED_AXES
+from kgarment.clutch import clutch_spec_from_record
+from kgarment.clutch.layouts import LAYOUTS
+from kgarment.errors import KgarmentError, unknown
+from kgarment.garment import template_names
+from kgarment.problem.spec import (
+    DEFAULT_MOTIONS,
+    FILTERS,
+    METHODS,
+    OBJECTIVE_NAMES,
+    PRESET_NAMES,
+    BesoParams,
+    BodySpec,
+    ClutchesSpec,
+    DesignSpec,
+    GarmentSpec,
+    MaterialSpec,
+    Problem,
+    SolverSpec,
+)
+
+SECTIONS = ("body", "motions", "garment", "clutches", "materials", "design", "solver")
+
+
+def load_problem(path) -> Problem:
+    """Read and validate a TOML problem file."""
+    path = Path(path)
+    if not path.is_file():
+        raise KgarmentError(f"problem file not found: {path}")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise KgarmentError(f"problem file {path} is not valid TOML: {exc}") from None
+    return parse_problem(data, path.parent, path)
+
+
+def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None) -> Problem:
+    """Validate a parsed TOML dict into a :class:`Problem` (errors name the field)."""
+    check_keys("problem", data, SECTIONS)
+    body = _body(data.get("body", {}), base)
+    user, names = _motions(data.get("motions", {}), body)
+    garment = _garment(data.get("garment", {}), base)
+    clutches = _clutches(data["clutches"], base) if "clutches" in data else None
+    design = _design(data.get("design", {}))
+    solver = dict(data.get("solver", {}))
+    mats = dict(data.get("materials", {}))
+    check_keys("materials", mats, ("preset",))
+    if "preset" in solver:  # run folders written before [materials] existed
+        mats.setdefault("preset", solver.pop("preset"))
+    materials = section(MaterialSpec, "materials", mats, {"preset": PRESET_NAMES}, {})
+    solver = section(SolverSpec, "solver", solver, {"method": METHODS}, C.SOLVER_RANGES)
+    return Problem(body, names, user, garment, clutches, design, solver, materials, source)
+
+
+def check_keys(section_name: str, d: dict, allowed) -> None:
+    """Refuse a table with a field not in ``allowed``."""
+    bad = set(d) - set(allowed)
+    if bad:
+        raise KgarmentError(f"[{section_name}]: unknown field {sorted(bad)[0]!r}; allowed: {', '.join(allowed)}")
+
+
+def section(cls, name: str, d: dict, choices: dict, ranges: dict):
+    """Validate a flat TOML table against a dataclass: known fields, types, choices, ranges."""
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    check_keys(name, d, list(fields))
+    out = {}
+    for k, v in d.items():
+        default = fields[k].default
+        if isinstance(default, bool):
+            if not isinstance(v, bool):
+                raise KgarmentError(f"[{name}] {k} = {v!r}; allowed: true, false")
+        elif isinstance(default, (int, float)):
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise KgarmentError(f"[{name}] {k} = {v!r} must be a number")
+            if isinstance(default, int) and not float(v).is_integer():
+                raise KgarmentError(f"[{name}] {k} = {v!r} must be an integer")
+            v = type(default)(v)
+        if k in choices and v not in choices[k]:
+            raise KgarmentError(f"[{name}] {k} = {v!r}; allowed: {', '.join(choices[k])}")
+        if k in ranges and not ranges[k][0] <= v <= ranges[k][1]:
+            raise KgarmentError(f"[{name}] {k} = {v!r} is outside [{ranges[k][0]:g}, {ranges[k][1]:g}]")
+        out[k] = v
+    return cls(**out)
+
+
+def _path(base: Path, p, what: str) -> Path:
+    if not isinstance(p, str):
+        raise KgarmentError(f"{what} must be a file path string")
+    q = Path(p)
+    q = q if q.is_absolute() else base / q
+    if not q.exists():
+        raise KgarmentError(f"{what}: file not found: {q}")
+    return q
+
+
+def _body(b: dict, base: Path) -> BodySpec:
+    check_keys("body", b, ("model", "phenotype", "rest", "rig", "motions"))
+    model = b.get("model", "anny")
+    if model not in ("anny", "meshes"):
+        raise unknown("body model", model, ("anny", "meshes"))
+    if model == "anny":
+        return BodySpec("anny", Phenotype.from_dict(b.get("phenotype", {})))
+    if "rest" not in b or "motions" not in b:
+        raise KgarmentError("[body] model = 'meshes' needs rest = FILE and motions = {name = FILE}")
+    meshes = tuple((k, _path(base, v, f"body.motions.{k}")) for k, v in b["motions"].items())
+    return BodySpec("meshes", Phenotype(), _path(base, b["rest"], "body.rest"),
+                    _path(base, b["rig"], "body.rig") if "rig" in b else None, meshes)
+
+
+def _rotation(d, where: str) -> Rotation:
+    if not isinstance(d, dict):
+        raise KgarmentError(f"{where}: a rotation is a table {{bone, axis, degrees}}")
+    check_keys(where, d, ("bone", "axis", "degrees"))
+    if "bone" not in d or "degrees" not in d:
+        raise KgarmentError(f"{where}: a rotation needs bone and degrees")
+    axis = d.get("axis", "x")
+    if isinstance(axis, list):
+        axis = tuple(float(a) for a in axis)
+    elif axis not in NAMED_AXES:
+        raise unknown(f"axis in {where}", axis, NAMED_AXES)
+    return Rotation(str(d["bone"]), axis, float(d["degrees"]))
+
+
+def _user_motion(name: str, d: dict) -> Motion:
+    where = f"motions.define.{name}"
+    check_keys(where, d, ("rotations", "keyframes", "description"))
+    if ("rotations" in d) == ("keyframes" in d):
+        raise KgarmentError(f"[{where}]: give either rotations or keyframes")
+    frames = [d["rotations"]] if "rotations" in d else d["keyframes"]
+    kfs = tuple(tuple(_rotation(r, where) for r in kf) for kf in frames)
+    if not kfs or not all(kfs):
+        raise KgarmentError(f"[{where}]: a motion needs at least one rotation")
+    return Motion(name, kfs, str(d.get("description", "user motion")))
+
+
+def _motions(m: dict, body: BodySpec) -> tuple[tuple[Motion, ...], tuple[str, ...]]:
+    check_keys("motions", m, ("use", "define"))
+    user = tuple(_user_motion(k, v) for k, v in m.get("define", {}).items())
+    default = [k for k, _ in body.meshes] if body.model == "meshes" else DEFAULT_MOTIONS
+    names = _check_motions(tuple(m.get("use", default)), body, MotionLibrary({u.name: u for u in user}))
+    return user, names
+
+
+def _check_motions(names: tuple[str, ...], body: BodySpec, library: MotionLibrary) -> tuple[str, ...]:
+    """``names`` if each is a motion of the body (its mesh files, or the motion library)."""
+    if body.model == "meshes":
+        missing = [n for n in names if n not in dict(body.meshes)]
+        if missing:
+            raise unknown("motion", missing[0], dict(body.meshes))
+    else:
+        for n in names:
+            library.get(n)
+    if not names:
+        raise KgarmentError("[motions] use = [] lists no motion")
+    return names
+
+
+def _garment(g: dict, base: Path) -> GarmentSpec:
+    check_keys("garment", g, ("template", "mask", "attach", "subdivision"))
+    sub = _subdivision(g.get("subdivision", 1))
+    if "mask" in g:
+        return GarmentSpec(None, _path(base, g["mask"], "garment.mask"), tuple(g.get("attach", ())), sub)
+    t = g.get("template", "short_sleeve_shirt")
+    if t not in template_names():
+        raise unknown("garment", t, template_names())
+    return GarmentSpec(t, None, (), sub)
+
+
+def _subdivision(sub) -> int:
+    if sub not in C.SUBDIVISIONS:
+        raise KgarmentError(f"[garment] subdivision = {sub!r}; allowed: {', '.join(map(str, C.SUBDIVISIONS))}")
+    return sub
+
+
+def _design(d: dict) -> DesignSpec:
+    """[design]: the objective, protection and the BESO fields (flat keys) -> DesignSpec."""
+    beso_keys = {f.name for f in dataclasses.fields(BesoParams)}
+    own = {f.name for f in dataclasses.fields(DesignSpec)} - {"beso"}
+    check_keys("design", d, sorted(own) + [f.name for f in dataclasses.fields(BesoParams)])
+    ranges = C.DESIGN_RANGES
+    beso = section(BesoParams, "design", {k: v for k, v in d.items() if k in beso_keys}, {"filter": FILTERS}, ranges)
+    rest = section(_DesignOwn, "design", {k: v for k, v in d.items() if k in own},
+                   {"objective": OBJECTIVE_NAMES}, ranges)
+    return DesignSpec(beso=beso, **asdict(rest))
+
+
+@dataclasses.dataclass(frozen=True)
+class _DesignOwn:
+    """The [design] fields that are not BESO parameters (for validation)."""
+
+    objective: str = "active"
+    protect_attachments: bool = False
+    protect_clutch_margin: float = 0.0
+
+
+def _clutches(c: dict, base: Path) -> ClutchesSpec:
+    check_keys("clutches", c, ("layout", "file", "clutch", "side"))
+    layout = c.get("layout")
+    if layout is not None and layout not in LAYOUTS:
+        raise unknown("clutch layout", layout, LAYOUTS)
+    side = c.get("side", "R")
+    if side not in ("L", "R"):
+        raise KgarmentError(f"[clutches] side = {side!r}; allowed: L, R")
+    f = _path(base, c["file"], "clutches.file") if "file" in c else None
+    recs = c.get("clutch", [])
+    if not isinstance(recs, list):
+        raise KgarmentError("[clutches] clutch must be an array of tables ([[clutches.clutch]])")
+    inline = tuple(clutch_spec_from_record(r, k, "[clutches]") for k, r in enumerate(recs))
+    return ClutchesSpec(layout, f, inline, side)
+
+
+def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
+    """The resolved problem as a TOML-ready dict (paths absolute) that ``parse_problem``
+    reads back to an equal problem; clutches are referenced by ``clutch_file`` when given."""
+    b = problem.body
+    body: dict = {"model": b.model}
+    if b.model == "anny":
+        body["phenotype"] = asdict(b.phenotype)
+    else:
+        body["rest"] = str(Path(b.rest).resolve())
+        body["motions"] = {k: str(Path(v).resolve()) for k, v in b.meshes}
+        if b.rig:
+            body["rig"] = str(Path(b.rig).resolve())
+    motions: dict = {"use": list(problem.motions)}
+    if problem.user_motions:
+        motions["define"] = {
+            m.name: {"keyframes": [[{"bone": r.bone, "axis": r.axis if isinstance(r.axis, str) else list(r.axis),
+                                     "degrees": r.degrees} for r in kf] for kf in m.keyframes],
+                     "description": m.description} for m in problem.user_motions}
+    g = problem.garment
+    garment: dict = {"subdivision": g.subdivision}
+    if g.template:
+        garment["template"] = g.template
+    else:
+        garment["mask"] = str(Path(g.mask).resolve())
+        garment["attach"] = list(g.attach)
+    out = {"body": body, "motions": motions, "garment": garment, "design": problem.design.flat(),
+           "solver": asdict(problem.solver), "materials": asdict(problem.materials)}
+    if clutch_file is not None:
+        out["clutches"] = {"file": str(Path(clutch_file).resolve())}
+    return out
+
+
+def override(problem: Problem, *, motions=None, template: str | None = None, subdivision: int | None = None,
+             preset: str | None = None, method: str | None = None, tol: float | None = None,
+             max_iterations: int | None = None) -> Problem:
+    """``problem`` with command-line overrides (None: keep the file's), validated with the
+    same rules and messages as the problem file's fields."""
+    changes: dict = {}
+    if motions:
+        changes["motions"] = _check_motions(tuple(motions), problem.body, problem.library())
+    g = problem.garment
+    if template is not None:
+        g = _garment({"template": template, "subdivision": g.subdivision}, Path("."))
+    if subdivision is not None:
+        g = dataclasses.replace(g, subdivision=_subdivision(subdivision))
+    changes["garment"] = g
+    if preset is not None:
+        changes["materials"] = section(MaterialSpec, "materials", {"preset": preset}, {"preset": PRESET_NAMES}, {})
+    solver = {k: v for k, v in (("method", method), ("tol", tol)) if v is not None}
+    if solver:
+        solver = {**asdict(problem.solver), **solver}
+        changes["solver"] = section(SolverSpec, "solver", solver, {"method": METHODS}, C.SOLVER_RANGES)
+    if max_iterations is not None:
+        beso = {**asdict(problem.design.beso), "max_iterations": max_iterations}
+        beso = section(BesoParams, "design", beso, {"filter": FILTERS}, C.DESIGN_RANGES)
+        changes["design"] = dataclasses.replace(problem.design, beso=beso)
+    return dataclasses.replace(problem, **changes)

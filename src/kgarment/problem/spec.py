@@ -1,0 +1,203 @@
+"""The problem as frozen dataclasses: body, motions, garment, clutches, design, solver, materials.
+
+Parsed once from a TOML file (:mod:`kgarment.problem.parse`); everything else reads these.
+Defaults and ranges come from :mod:`kgarment.constants`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from kgarment import constants as C
+from kgarment.body import Motion, MotionLibrary, Phenotype
+
+DEFAULT_MOTIONS = ("arms_forward", "arms_raise", "bend_forward")
+DEFAULT_LAYOUT = {"short_sleeve_shirt": "shirt", "long_sleeve_shirt": "long_sleeve", "arm_sleeve": "sleeve"}
+OBJECTIVE_NAMES = ("active", "passive", "compliance")
+FILTERS = ("one_ring", "radius")
+PRESET_NAMES = ("paper", "reference")
+METHODS = ("newton", "lbfgs")
+
+
+@dataclass(frozen=True)
+class BodySpec:
+    """[body]: ``model`` "anny" (with a phenotype) or "meshes" (posed mesh files)."""
+
+    model: str = "anny"
+    phenotype: Phenotype = field(default_factory=Phenotype)
+    rest: Path | None = None
+    rig: Path | None = None
+    meshes: tuple[tuple[str, Path], ...] = ()
+
+
+@dataclass(frozen=True)
+class GarmentSpec:
+    """[garment]: a template name, or a face mask with the boundary loops to attach."""
+
+    template: str | None = "short_sleeve_shirt"
+    mask: Path | None = None
+    attach: tuple[str, ...] = ()
+    subdivision: int = 1
+
+
+@dataclass(frozen=True)
+class ClutchesSpec:
+    """[clutches]: a default layout by name, a clutch file, and/or inline clutches."""
+
+    layout: str | None = None
+    file: Path | None = None
+    inline: tuple = ()
+    side: str = "R"
+
+    @property
+    def empty(self) -> bool:
+        return self.layout is None and self.file is None and not self.inline
+
+
+@dataclass(frozen=True)
+class BesoParams:
+    """BESO settings (paper defaults; method.md section 6).
+
+    target_area : A*, reinforced area fraction to reach (0.15; 0.20 for the sleeve).
+    er : evolution ratio, the target area shrinks by this fraction per iteration.
+    ar_max : at most this fraction of the faces may be added per iteration.
+    filter : "one_ring" (paper) or "radius" (classic BESO mesh-independent filter).
+    radius : filter radius in metres for "radius".
+    history : average sensitivities with the previous iteration's (halves flicker).
+    tol, window : converged when the target is reached and the objective changed less than
+        ``tol`` (relative) over ``window`` iterations.
+    max_iterations : hard stop.
+
+    The material interpolation (``p``, ``x_min``) is the simulator's
+    (:data:`kgarment.constants.PENALTY`, :data:`kgarment.constants.X_MIN`).
+    """
+
+    target_area: float = C.TARGET_AREA
+    er: float = C.ER
+    ar_max: float = C.AR_MAX
+    filter: str = "one_ring"
+    radius: float = C.FILTER_RADIUS
+    history: bool = True
+    tol: float = C.CONVERGENCE_TOL
+    window: int = C.WINDOW
+    max_iterations: int = C.MAX_ITERATIONS
+
+    def reached(self, area: float) -> bool:
+        """Whether the reinforced area share ``area`` is at A* (:func:`kgarment.constants.target_reached`)."""
+        return C.target_reached(area, self.target_area, self.er)
+
+
+@dataclass(frozen=True)
+class DesignSpec:
+    """[design]: the objective, the BESO parameters and what is kept reinforced.
+
+    objective : "active" (the paper: ON - OFF), "passive" (EG 2022, no clutches) or
+    "compliance" (ON only);  beso : BesoParams (its fields are flat keys of [design]);
+    protect_attachments : keep the attachment rings reinforced;
+    protect_clutch_margin : metres around clutch anchors kept reinforced (0: off).
+    """
+
+    objective: str = "active"
+    beso: BesoParams = field(default_factory=BesoParams)
+    protect_attachments: bool = False
+    protect_clutch_margin: float = 0.0
+
+    def flat(self) -> dict:
+        """The [design] table as written in a problem file (BESO fields flattened)."""
+        out = {"objective": self.objective, **asdict(self.beso)}
+        out.update(protect_attachments=self.protect_attachments, protect_clutch_margin=self.protect_clutch_margin)
+        return out
+
+
+@dataclass(frozen=True)
+class SolverSpec:
+    """[solver]: simulator settings.
+
+    tol : the scaled force residual of :class:`kgarment.sim.SolverOptions` (its module doc).
+    1e-3 for design iterations: the equilibria are only defined to about that accuracy.
+    ``benchmarks/accuracy.py`` (three-motion shirt, subdivision 0, 6 states after a BESO-like
+    design change): per-face energy densities at 1e-3 are within 0.3% (median over states;
+    1.9% at most) of a 1e-7 solve, while solves that all *converge* to 1e-5 with other
+    solver settings land up to 0.35-2.4% apart: a membrane without bending stiffness on a
+    frictionless body has many nearly equal equilibria (slack cloth, wrinkles, sliding).
+    The main job at 1e-3 and at 1e-4 ends with designs 4 faces (of 3,229) apart, rho ON
+    within 1% when both are evaluated at 1e-5, in 2.5x less time.  Evaluations
+    (``kgarment evaluate``, ``simulate``, ``reproduce``, ``fabricate``, the studio) solve to
+    ``min(tol, EVALUATION_TOL)`` (1e-4; :func:`kgarment.problem.solver_options`).
+    evolution_tol : the tolerance while the BESO target area is still changing (iterations
+    1 until A* is reached; iteration 0, the reference of rho, and every iteration at A*,
+    whose objectives decide convergence, solve to ``tol``).  The ranking that moves the
+    design towards A* needs sensitivities, not digits (Amir & Sigmund 2011, "On reducing
+    computational effort in topology optimization: how accurate should the analysis
+    be?"); ``benchmarks/design.py`` measures what it costs and buys.  Set it equal to
+    ``tol`` to solve every iteration alike.
+    max_iter : Newton iterations per state.
+    workers : processes solving states in parallel; 0 = one per core, at most 8 (results do
+    not depend on it).
+    """
+
+    method: str = "newton"
+    tol: float = C.DESIGN_TOL
+    evolution_tol: float = C.EVOLUTION_TOL
+    max_iter: int = C.MAX_NEWTON
+    workers: int = 0
+
+
+@dataclass(frozen=True)
+class MaterialSpec:
+    """[materials]: ``preset`` "paper" (0.5 MPa / 0.5 GPa / 3 GPa, the paper's text) or
+    "reference" (0.5 / 5.7 / 25.7 MPa, the reference implementation; kgarment.sim.materials)."""
+
+    preset: str = "paper"
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A whole problem; ``clutches`` None means the garment's default layout;
+    ``source`` is the file it was read from (None: built in)."""
+
+    body: BodySpec = field(default_factory=BodySpec)
+    motions: tuple[str, ...] = DEFAULT_MOTIONS
+    user_motions: tuple[Motion, ...] = ()
+    garment: GarmentSpec = field(default_factory=GarmentSpec)
+    clutches: ClutchesSpec | None = None
+    design: DesignSpec = field(default_factory=DesignSpec)
+    solver: SolverSpec = field(default_factory=SolverSpec)
+    materials: MaterialSpec = field(default_factory=MaterialSpec)
+    source: Path | None = None
+
+    def library(self) -> MotionLibrary:
+        return MotionLibrary({m.name: m for m in self.user_motions})
+
+    def motion_list(self) -> list[Motion]:
+        lib = self.library()
+        return [lib.get(n) for n in self.motions]
+
+    def clutch_spec(self) -> ClutchesSpec:
+        """The clutches section, or the garment template's default layout when absent."""
+        if self.clutches is not None:
+            return self.clutches
+        t = (self.garment.template or "").split(".")[0]
+        side = "L" if (self.garment.template or "").endswith(".left") else "R"
+        return ClutchesSpec(layout=DEFAULT_LAYOUT.get(t), side=side)
+
+    def describe(self) -> str:
+        """The resolved problem, in full, for the start of a run."""
+        lines = [f"problem: {self.source or '(built-in default)'}", f"body: {self.body.model}"]
+        if self.body.model == "anny":
+            lines.append(f"  phenotype: {asdict(self.body.phenotype)}")
+        else:
+            lines.append(f"  rest: {self.body.rest}; rig: {self.body.rig}")
+        lines.append(f"motions: {', '.join(self.motions)}")
+        g = self.garment
+        lines.append(f"garment: {g.template or g.mask}; subdivision {g.subdivision}"
+                     + (f"; attach {list(g.attach)}" if g.attach else ""))
+        c = self.clutch_spec()
+        parts = ([f"layout {c.layout} ({c.side})"] if c.layout else []) + ([f"file {c.file}"] if c.file else []) \
+            + ([f"{len(c.inline)} inline"] if c.inline else [])
+        lines.append(f"clutches: {'; '.join(parts) or 'none'}")
+        lines.append("design: " + ", ".join(f"{k} {v}" for k, v in self.design.flat().items()))
+        lines.append("solver: " + ", ".join(f"{k} {v}" for k, v in asdict(self.solver).items()))
+        lines.append(f"materials: preset {self.materials.preset}")
+        return "\n".join(lines)

@@ -1,0 +1,81 @@
+"""The paper's design experiments and the resolutions they run at: data only, so the
+command line can list them without loading the simulator (see :mod:`.experiments`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from kgarment.errors import KgarmentError
+
+
+@dataclass(frozen=True)
+class Resolution:
+    """subdivision : garment level (None: the example's); er, ar_max : BESO steps (None:
+    the example's); max_iterations : cap (None: the example's); window : convergence
+    window; seeds : random baseline designs."""
+
+    name: str
+    subdivision: int | None
+    er: float | None
+    max_iterations: int | None
+    window: int | None
+    seeds: int
+
+
+RESOLUTIONS = {
+    "tiny": Resolution("tiny", 0, 0.2, 3, 2, 2),
+    "preview": Resolution("preview", 0, 0.03, 120, None, 10),
+    "default": Resolution("default", None, None, None, None, 10),
+}
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """name : also the example file's stem;  group : experiments sharing garment and
+    clutch placement ("sleeve", "shirt", "long_sleeve");  multi : optimised for several
+    motions;  paper : motion -> (rho ON, rho OFF or None) as published."""
+
+    name: str
+    group: str
+    multi: bool
+    paper: dict
+    title: str
+
+
+EXPERIMENTS = (
+    Experiment("arm_flexion", "sleeve", False, {"arm_flexion.right": (1.14, 0.34)}, "Arm flexion (sleeve, one clutch)"),
+    Experiment("arm_extension", "sleeve", False, {"arm_extension.right": (1.74, 0.54)},
+               "Arm extension (sleeve, one clutch)"),
+    Experiment("arms_forward", "shirt", False, {"arms_forward": (2.13, 0.48)}, "Arms forward (shirt, three clutches)"),
+    Experiment("arms_raise", "shirt", False, {"arms_raise": (1.51, 0.66)}, "Arms raise (shirt, three clutches)"),
+    Experiment("bend_forward", "shirt", False, {"bend_forward": (2.47, 0.73)}, "Bend forward (shirt, three clutches)"),
+    Experiment("sleeve_two_motions", "sleeve", True,
+               {"arm_flexion.right": (0.88, None), "arm_extension.right": (1.27, None)},
+               "Two-motion sleeve (flexion + extension)"),
+    Experiment("shirt_three_motions", "shirt", True,
+               {"arms_forward": (1.77, None), "arms_raise": (1.08, None), "bend_forward": (1.60, None)},
+               "Three-motion shirt"),
+    Experiment("long_sleeve_five_motions", "long_sleeve", True,
+               {"arms_forward": (1.41, None), "arms_raise": (0.85, None), "bend_forward": (1.62, None),
+                "arm_flexion.right": (0.64, None), "arm_extension.right": (1.16, None)},
+               "Long-sleeve shirt, five clutches, five motions"),
+)
+BY_NAME = {e.name: e for e in EXPERIMENTS}
+# the paper's Table 1 (three-motion shirt, rho ON): rows evaluated on, columns optimised for
+PAPER_SHIRT_MATRIX = {
+    "arms_forward": {"arms_forward": 2.13, "arms_raise": 0.46, "bend_forward": 0.34, "all": 1.77},
+    "arms_raise": {"arms_forward": 0.62, "arms_raise": 1.51, "bend_forward": 0.14, "all": 1.08},
+    "bend_forward": {"arms_forward": 0.35, "arms_raise": 0.81, "bend_forward": 2.47, "all": 1.60},
+}
+MULTI_OF_GROUP = {"sleeve": "sleeve_two_motions", "shirt": "shirt_three_motions"}
+
+
+def select(names: str | None) -> list[Experiment]:
+    """Experiments by comma-separated names (None: all), in the canonical order."""
+    if not names:
+        return list(EXPERIMENTS)
+    asked = [n.strip() for n in names.split(",") if n.strip()]
+    unknown = [n for n in asked if n not in BY_NAME]
+    if unknown:
+        raise KgarmentError(f"unknown experiment {unknown[0]!r}; known: {', '.join(BY_NAME)}")
+    return [e for e in EXPERIMENTS if e.name in asked]

@@ -1,0 +1,87 @@
+"""What the page keeps of a simulated design, and the results table it shows.
+
+A :class:`SimResult` is a :class:`kgarment.design.DesignEvaluation` (the one design
+evaluator's answer) reduced to what the page draws and saves: the numbers per (motion,
+state) and, for display, the equilibrium positions and energy densities.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kgarment.design import DesignEvaluation
+from kgarment.design.setup import StateKey
+from kgarment.sim import SimModel
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """One design simulated on some motions.
+
+    label : "A", "B (...)" or free text;  revision : the studio state's revision it was
+    computed for;  design : (m,) bool;  rows : per (motion, state) the evaluator's numbers
+    (motion, state, rho, energy J, energy_full J, converged);  garment_x : {(motion, state):
+    (n, 3) equilibrium positions, m};  density : {(motion, state): (m,) energy density,
+    J/m^2};  clutch_x : {(motion, state): [(nc, 3) positions of each clutch, m]}.
+    """
+
+    label: str
+    revision: int
+    design: np.ndarray = field(repr=False)
+    rows: tuple[dict, ...] = ()
+    garment_x: dict[StateKey, np.ndarray] = field(default_factory=dict, repr=False)
+    density: dict[StateKey, np.ndarray] = field(default_factory=dict, repr=False)
+    clutch_x: dict[StateKey, list[np.ndarray]] = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def of(cls, label: str, revision: int, evaluation: DesignEvaluation, model: SimModel) -> SimResult:
+        """The page's copy of ``evaluation`` (its equilibria split by ``model``, the
+        evaluator's simulation model)."""
+        garment_x, density, clutch_x = {}, {}, {}
+        for s in evaluation.states:
+            gx, cx = model.split(s.result.x)
+            garment_x[s.key] = np.asarray(gx).copy()
+            density[s.key] = np.asarray(s.result.garment_density).copy()
+            clutch_x[s.key] = [np.asarray(x).copy() for x in cx]
+        return cls(label, revision, np.asarray(evaluation.design, bool).copy(),
+                   tuple(s.row() for s in evaluation.states), garment_x, density, clutch_x)
+
+    def row(self, motion: str, state: str) -> dict | None:
+        return next((r for r in self.rows if r["motion"] == motion and r["state"] == state), None)
+
+    def rho(self, motion: str, state: str) -> float | None:
+        """rho of (motion, state), or None when not simulated."""
+        r = self.row(motion, state)
+        return None if r is None else r["rho"]
+
+    def states(self) -> set[str]:
+        """The clutch states simulated ("on", "off", "none")."""
+        return {k[1] for k in self.garment_x}
+
+    def to_json(self) -> dict:
+        """What a session's results.json holds of it (no equilibria)."""
+        return {"label": self.label, "revision": self.revision, "rows": [dict(r) for r in self.rows]}
+
+
+def results_table(a: SimResult | None, b: SimResult | None, stale_a: bool = False) -> str:
+    """Markdown table of rho per motion and state for designs A and B side by side."""
+    evs = [e for e in (a, b) if e is not None]
+    if not evs:
+        return "No simulation yet: pick motions and press **Simulate design A**."
+    keys = list(dict.fromkeys((r["motion"], r["state"]) for e in evs for r in e.rows))
+    head = "| motion | state | " + " | ".join(f"rho {e.label}" for e in evs) + " |"
+    lines = [head, "|---|---|" + "---:|" * len(evs)]
+    for m, s in keys:
+        cells = []
+        for e in evs:
+            row = e.row(m, s)
+            cells.append("" if row is None else f"{row['rho']:.3f}" + ("" if row["converged"] else " (nc)"))
+        lines.append(f"| {m} | {s} | " + " | ".join(cells) + " |")
+    notes = []
+    if stale_a and a is not None:
+        notes.append("A was simulated before the latest edits.")
+    if any(not r["converged"] for e in evs for r in e.rows):
+        notes.append("(nc): the solver did not fully converge.")
+    return "\n".join(lines) + ("\n\n" + " ".join(notes) if notes else "")
