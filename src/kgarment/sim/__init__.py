@@ -17,6 +17,7 @@ All arrays are float64 SI (m, Pa, J, N).  See the module docstrings of ``materia
 from kgarment.sim.assembly import HessianPattern, SparseCholesky
 from kgarment.sim.contact import ImplicitBody, NeighborCache, update_neighbors
 from kgarment.sim.energy import TERMS, SimulationError, StateProblem, state_materials
+from kgarment.sim.forces import clutch_tensions
 from kgarment.sim.lbfgs import lbfgs_solve
 from kgarment.sim.materials import (
     PAPER,
@@ -71,6 +72,7 @@ __all__ = [
     "TriangleElements",
     "build_model",
     "clutch_material",
+    "clutch_tensions",
     "evaluate_state",
     "garment_material",
     "garment_motions",
