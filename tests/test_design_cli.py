@@ -49,6 +49,15 @@ def test_tiny_design_run(tmp_path, anny_body, objective):
     for s in states:
         assert f"rho[arm_flexion.right:{s}]" in rows[0]
         assert (run / "final" / f"energy_arm_flexion.right_{s}.png").is_file()
+    # the final numbers are the one evaluator's, printed at the end and written as JSON
+    final = json.loads((run / "final" / "evaluation.json").read_text())
+    assert final["iteration"] == 2 and {r["state"] for r in final["rows"]} == set(states)
+    assert "evaluated like kgarment evaluate" in out
+    if objective == "passive":  # no clutches in the passive objective: no loads
+        assert "clutches" not in final
+    else:
+        assert [c["clutch"] for c in final["clutches"]] == ["elbow_outer.R"]
+        assert (run / "final" / "clutch_loads.png").is_file() and "clutch loads" in out
     # the designs are stored compactly and any iteration can be taken as a design
     from kgarment.design.run import load_design_history
 
@@ -90,8 +99,19 @@ def test_resume_from_the_command_line_and_evaluate(tmp_path, anny_body):
     np.testing.assert_array_equal(load_design_history(tmp_path / "whole"), load_design_history(tmp_path / "part"))
     rc, out, err = _cli(["evaluate", "whole@1", "--json", "e.json"], tmp_path)
     assert rc == 0, err
-    rows = json.loads((tmp_path / "e.json").read_text())["rows"]
+    doc = json.loads((tmp_path / "e.json").read_text())
+    rows = doc["rows"]
     assert {r["state"] for r in rows} == {"on", "off"}
     assert all(np.isfinite(r["rho"]) and r["rho"] > 0 for r in rows)
+    (load,) = doc["clutches"]
+    assert load["motion"] == "arm_flexion.right" and load["clutch"] == "elbow_outer.R" and "tension_N" in load
+    (g,) = doc["garment"]
+    assert g["energy_on_J"] > 0 and g["energy_off_J"] > 0
+    # one truth per design: evaluating the final design gives the run's final numbers
+    rc, _, err = _cli(["evaluate", "whole", "--json", "f.json"], tmp_path)
+    assert rc == 0, err
+    again = json.loads((tmp_path / "f.json").read_text())
+    final = json.loads((tmp_path / "whole" / "final" / "evaluation.json").read_text())
+    assert again["rows"] == final["rows"] and again["clutches"] == final["clutches"]
     rc, _, err = _cli(["evaluate", "nowhere"], tmp_path)
     assert rc == 2 and "not a run folder" in err

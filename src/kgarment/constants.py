@@ -46,3 +46,9 @@ def target_reached(area: float, target: float, er: float) -> bool:
     """Whether a reinforced area share ``area`` counts as the target ``target`` (A*)."""
     return abs(area - target) <= TARGET_MARGIN + er * target
 
+# ----- judging a design as a garment (method.md section 9) -----------------------------------
+LOADED_SHARE = 0.10    # a clutch is "loaded" in a motion when switching it on alone gives at least
+                       # this share of the energy that switching all clutches on adds
+LOAD_TOL = 1e-3        # solver tolerance of the one-clutch-ON states behind the shares
+UNCONTROLLABLE = 0.05  # a motion whose fully reinforced garment stores ON and OFF energies within
+                       # this relative difference cannot be controlled by the clutches

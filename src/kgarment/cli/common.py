@@ -108,3 +108,22 @@ def design_progress(total: int, start: int, motions, quiet: bool):
                 log.warning("iteration %d: states not converged: %s", row["iteration"], row["unconverged_states"])
 
         yield update
+
+
+def print_evaluation(res) -> None:
+    """A design's evaluation (kgarment.design.DesignEvaluation) as tables on stdout."""
+    print(f"{'motion':24s} {'state':6s} {'rho':>7s} {'E design (J)':>13s} {'E full (J)':>11s}")
+    for r in res.states:
+        flag = "" if r.converged else "  (NOT converged)"
+        if r.multistable:
+            flag += f"  (a second equilibrium of higher energy has rho {r.other_rho:.3f})"
+        print(f"{r.motion:24s} {r.state:6s} {r.rho:7.3f} {r.energy:13.5g} {r.energy_full:11.5g}{flag}")
+    print(f"reinforced area {100 * res.area:.1f}%; islands {res.islands} ({res.islands_with_clutches} counting "
+          f"clutches as links); clutch ends on reinforcement {res.clutch_ends_supported}/{res.clutch_ends}")
+    if res.loads is not None:
+        print("clutch loads (share of the ON - OFF garment energy with only that clutch ON / tension all ON; "
+              "* loaded):")
+        print(res.loads.table())
+        idle = res.loads.unloaded()
+        if idle:
+            print(f"clutches that carry no load in any motion: {', '.join(idle)}")

@@ -12,6 +12,7 @@ from kgarment.cli.common import (
     design_progress,
     expected_iterations,
     load,
+    print_evaluation,
     rho_line,
 )
 from kgarment.errors import KgarmentError
@@ -19,7 +20,7 @@ from kgarment.errors import KgarmentError
 DEMO_EXAMPLE = "shirt_three_motions"
 
 
-def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: bool) -> int:
+def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: bool, evaluate: bool = True) -> int:
     """Open (or resume) a run folder, iterate with a progress bar, print the summary."""
     from kgarment.design import finish, open_run
 
@@ -37,7 +38,7 @@ def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: b
             update(st)
 
         try:
-            dr = finish(dr, progress=progress)
+            dr = finish(dr, progress=progress, evaluate=evaluate)
         except KeyboardInterrupt:
             print(f"\ninterrupted after iteration {last[0].iteration - 1}; continue with: "
                   f"kgarment design --resume {dr.run}")
@@ -49,9 +50,10 @@ def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: b
 def print_summary(dr, seconds: float) -> None:
     st = dr.state
     row = st.metrics[-1]
-    print(f"\n{len(st.metrics)} iterations in {seconds:.0f} s; final {rho_line(row, list(dr.setup.motions))}")
-    print(f"islands {row['islands']} ({row['islands_with_clutches']} counting clutches as links); "
-          f"clutch ends on reinforcement {row['clutch_ends_supported']}/{row['clutch_ends']}")
+    print(f"\n{len(st.metrics)} iterations in {seconds:.0f} s; last iteration {rho_line(row, list(dr.setup.motions))}")
+    if dr.evaluation is not None:
+        print(f"final design (iteration {len(st.designs) - 1}), evaluated like kgarment evaluate {dr.run}:")
+        print_evaluation(dr.evaluation)
     print(f"results in {dr.run}/: metrics.csv, metrics.json, progress.png, designs.npz, final/")
     for path in dr.paths:
         print(f"  {path}")
@@ -60,7 +62,7 @@ def print_summary(dr, seconds: float) -> None:
 def cmd_design(args) -> int:
     problem = None if args.resume else load(args)
     return run_design(problem, args.resume or args.out, resume=bool(args.resume), force=args.force,
-                      device=args.device, quiet=args.quiet)
+                      device=args.device, quiet=args.quiet, evaluate=not args.no_evaluation)
 
 
 def cmd_demo(args) -> int:
@@ -87,6 +89,8 @@ def cmd_evaluate(args) -> int:
     import json
 
     from kgarment.design import Evaluator, load_design, parse_design_source
+    from kgarment.design.driver import run_inputs
+    from kgarment.design.loads import load_chart
     from kgarment.design.run import iteration_of
     from kgarment.io import atomic_write_text
     from kgarment.problem import load_problem, override
@@ -94,18 +98,17 @@ def cmd_evaluate(args) -> int:
     src = parse_design_source(args.design, run_required=True)
     p = override(load_problem(src.run / "problem.toml"), motions=args.motion)
     k = iteration_of(src)
-    if args.json and Path(args.json).is_dir():
-        raise KgarmentError(f"--json {args.json} is a folder; give a file name")
-    ev = Evaluator.from_problem(p, device=args.device)
+    for flag, path in (("--json", args.json), ("--plot", args.plot)):
+        if path and Path(path).is_dir():
+            raise KgarmentError(f"{flag} {path} is a folder; give a file name")
+    p, body, garment, strips = run_inputs(src.run, p)
+    ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device)
     design = load_design(src, ev.n_faces)
     print(f"design: {src.run} iteration {k} ({100 * (design > 0.5).mean():.1f}% of faces reinforced)")
-    res = ev.evaluate(design)
-    print(f"{'motion':24s} {'state':6s} {'rho':>7s} {'E design (J)':>13s} {'E full (J)':>11s}")
-    for r in res.states:
-        flag = "" if r.converged else "  (NOT converged)"
-        print(f"{r.motion:24s} {r.state:6s} {r.rho:7.3f} {r.energy:13.5g} {r.energy_full:11.5g}{flag}")
-    print(f"reinforced area {100 * res.area:.1f}%; islands {res.islands} ({res.islands_with_clutches} counting "
-          f"clutches as links); clutch ends on reinforcement {res.clutch_ends_supported}/{res.clutch_ends}")
+    res = ev.evaluate(design, loads=not args.no_loads)
+    print_evaluation(res)
+    if args.plot and res.loads is not None:
+        print(f"wrote {load_chart(res.loads, args.plot, f'{src}: clutch loads')}")
     if args.json:
         doc = {"run": str(src.run), "iteration": k, **res.to_json()}
         atomic_write_text(args.json, json.dumps(doc, indent=1))
@@ -121,12 +124,19 @@ def add_parsers(sub) -> None:
     sp.add_argument("--out", default="runs/design", help="run folder (default runs/design)")
     sp.add_argument("--resume", metavar="RUN", help="continue a run folder where it stopped")
     sp.add_argument("--force", action="store_true", help="replace an existing run folder")
+    sp.add_argument("--no-evaluation", action="store_true", help="skip the final design's evaluation (rho from two "
+                    "starts and the load of every clutch: one more solve per clutch and motion); "
+                    "kgarment evaluate RUN does it later")
     sp.set_defaults(func=cmd_design)
 
-    sp = sub.add_parser("evaluate", help="evaluate a design (any iteration of a run) on any motions: rho ON/OFF")
+    sp = sub.add_parser("evaluate", help="evaluate a design (any iteration of a run) on any motions: rho ON/OFF, "
+                        "islands, clutch ends, and the load each clutch carries")
     sp.add_argument("design", help="run folder (its final design) or RUN@ITERATION")
     sp.add_argument("--motion", action="append", help="motion to evaluate on (repeatable); default: the run's")
     sp.add_argument("--json", help="also write the results as JSON to this file")
+    sp.add_argument("--plot", help="also draw the clutch loads (share and tension per motion) into this PNG")
+    sp.add_argument("--no-loads", action="store_true", help="skip the per-clutch loads (one more solve per "
+                    "clutch and motion)")
     add_device(sp)
     sp.set_defaults(func=cmd_evaluate)
 

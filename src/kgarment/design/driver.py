@@ -12,6 +12,7 @@ exactly what the first call built (attachments and clutches included).
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +24,9 @@ import tomli_w
 from kgarment.body import Body
 from kgarment.clutch import ClutchSpec, ClutchStrip, save_clutches
 from kgarment.clutch.landmarks import body_landmarks
+from kgarment.design.beso import design_values
+from kgarment.design.evaluate import DesignEvaluation, Evaluator
+from kgarment.design.loads import load_chart
 from kgarment.design.loop import LoopState, initial_state, run_loop
 from kgarment.design.report import finish_run
 from kgarment.design.run import load_checkpoint, prepare_run_folder, save_checkpoint
@@ -62,6 +66,7 @@ class DesignRun:
     setup: DesignSetup
     state: LoopState
     paths: tuple[Path, ...] = ()
+    evaluation: DesignEvaluation | None = None
 
 
 def open_run(problem: Problem | None, run, *, resume: bool = False, force: bool = False, device: str = "cpu",
@@ -91,6 +96,19 @@ def open_run(problem: Problem | None, run, *, resume: bool = False, force: bool 
     return DesignRun(run, problem, body, garment, strips, setup, st)
 
 
+def run_inputs(run, problem: Problem | None = None) -> tuple[Problem, Body, Garment, tuple[ClutchStrip, ...]]:
+    """The problem, body, garment (with the run's own attachments) and clutch strips of a
+    run folder, as the run used them; ``problem`` replaces the folder's problem.toml (e.g.
+    with other motions)."""
+    run = Path(run)
+    problem = load_problem(run / "problem.toml") if problem is None else problem
+    body = build_body(problem)
+    garment = build_garment(problem, body)
+    if (run / ATTACHMENTS).is_file():
+        garment = _with_attachments(garment, run / ATTACHMENTS)
+    return problem, body, garment, tuple(build_clutches(problem, body, garment))
+
+
 def write_inputs(run: Path, problem: Problem, body: Body, garment: Garment, specs, custom_garment: bool) -> None:
     """problem.toml (+ problem.txt, problem.source.toml), clutches.toml and, for a garment
     given by the caller, attachments.npz of a new run folder."""
@@ -117,13 +135,15 @@ def _with_attachments(garment: Garment, path: Path) -> Garment:
 
 
 def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
-           cancelled: Callable[[], bool] | None = None, final: bool = True) -> DesignRun:
+           cancelled: Callable[[], bool] | None = None, final: bool = True, evaluate: bool = True) -> DesignRun:
     """Iterate to the end (checkpoint after every iteration), then (``final``) write the
-    final design and its renders into ``dr.run / "final"``.
+    final design and its renders into ``dr.run / "final"`` and (``evaluate``) evaluate it
+    with the one design evaluator (:func:`evaluate_final`).
 
     progress(state) after every iteration (its checkpoint is already written);
     cancelled() is checked after every iteration and raises :class:`Cancelled` (the run
-    folder stays resumable).  Returns the run with its final state and written paths."""
+    folder stays resumable).  Returns the run with its final state, written paths and
+    evaluation."""
     def after(st: LoopState) -> None:
         if progress is not None:
             progress(st)
@@ -131,5 +151,28 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
             raise Cancelled()
 
     st = run_loop(dr.setup, dr.state, checkpoint=lambda s: save_checkpoint(dr.run, s), progress=after)
-    paths = finish_run(dr.run, dr.setup, st, dr.body, dr.garment, list(dr.strips)) if final else []
-    return dataclasses.replace(dr, state=st, paths=tuple(paths))
+    dr = dataclasses.replace(dr, state=st)
+    if not final:
+        return dr
+    paths = finish_run(dr.run, dr.setup, st, dr.body, dr.garment, list(dr.strips))
+    evaluation = None
+    if evaluate:
+        evaluation, more = evaluate_final(dr)
+        paths += more
+    return dataclasses.replace(dr, paths=tuple(paths), evaluation=evaluation)
+
+
+def evaluate_final(dr: DesignRun) -> tuple[DesignEvaluation, list[Path]]:
+    """The final design evaluated like ``kgarment evaluate RUN`` (the one design evaluator,
+    per-clutch loads included): ``final/evaluation.json`` and ``final/clutch_loads.png``.
+    These, not the last metrics row (solved warm along the run's path, to the design
+    tolerance), are the run's final numbers."""
+    ev = Evaluator(setup_from_problem(dr.problem, dr.body, dr.garment, dr.strips, "evaluate", dr.setup.solver.device))
+    design = design_values(dr.state.designs[-1])
+    res = ev.evaluate(design, loads=True)
+    doc = {"run": str(dr.run), "iteration": len(dr.state.designs) - 1, **res.to_json()}
+    paths = [atomic_write_text(dr.run / "final" / "evaluation.json", json.dumps(doc, indent=1))]
+    if res.loads is not None:
+        paths.append(load_chart(res.loads, dr.run / "final" / "clutch_loads.png",
+                                f"{dr.garment.name}: clutch loads of the final design"))
+    return res, paths

@@ -7,13 +7,17 @@ of that garment.  ``kgarment evaluate``, ``kgarment simulate --design``'s report
 studio, ``kgarment reproduce`` and ``kgarment fabricate`` all evaluate through it, so they
 give the same numbers for the same design.
 
-A design's equilibrium in a state (:meth:`Evaluator.equilibria`) is solved from the
-skin-tight start (like a design run's first iteration); a state that does not converge is
-retried from the fully reinforced garment's equilibrium and the converged, else
-lower-residual, solution is kept; a clutched state that still fails is solved by
-:func:`activation_continuation`.  The full garment's equilibrium alone is a poor start
-for a sparse design: measured, 200 Newton iterations without converging where the cold
-start needed 76.
+A design's equilibrium in a state (:meth:`Evaluator.solve_design`) is solved from two
+starts: the skin-tight garment on the posed body (the garment as put on, like a design
+run's first iteration) and the fully reinforced garment's equilibrium (where a design run's
+warm-started path begins).  A membrane without bending on a frictionless body can have
+several equilibria (the garment settles in different places), and the two starts can
+end in different ones: the converged solution of lower total energy, the more stable one,
+is kept, and the other is reported when the two differ by more than ``MULTISTABLE``.  A
+clutched state that converges from neither start is solved by
+:func:`activation_continuation`.  Measured on a tiny sleeve design
+(``tests/test_design_e2e.py``): the run's warm path ended at 0.455 J (rho ON 0.955), the
+skin-tight start at 0.444 J (rho ON 0.889).
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kgarment.design.loads import LoadReport, clutch_loads
 from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
 from kgarment.design.setup import DesignSetup, StateKey, setup_from_problem
 from kgarment.errors import Cancelled, KgarmentError, unknown
@@ -33,6 +38,7 @@ from kgarment.sim import SimState, StateResult, solve_states
 
 log = logging.getLogger(__name__)
 CONTINUATION = (0.0, 0.25, 0.5, 0.75, 1.0)
+MULTISTABLE = 0.01  # two equilibria whose total energies differ by more than this (relative) are reported
 
 
 @dataclass(frozen=True)
@@ -41,8 +47,10 @@ class StateEvaluation:
 
     motion, state : the key ("on", "off" or "none");  rho : relative energy density;
     energy : J stored in the design's reinforced faces and the clutches;  energy_full : the
-    fully reinforced garment's, J;  converged : both equilibria converged;  result : the
-    design's equilibrium (StateResult);  reference : the full garment's.
+    fully reinforced garment's, J;  converged : both equilibria converged;  other_rho : rho
+    of a second equilibrium of higher total energy found from the other start (None: the
+    starts agree);  result : the design's equilibrium (StateResult);  reference : the
+    full garment's.
     """
 
     motion: str
@@ -51,17 +59,22 @@ class StateEvaluation:
     energy: float
     energy_full: float
     converged: bool
-    result: StateResult = field(repr=False, compare=False)
-    reference: StateResult = field(repr=False, compare=False)
+    other_rho: float | None = None
+    result: StateResult = field(default=None, repr=False, compare=False)
+    reference: StateResult = field(default=None, repr=False, compare=False)
 
     @property
     def key(self) -> StateKey:
         return (self.motion, self.state)
 
+    @property
+    def multistable(self) -> bool:
+        return self.other_rho is not None
+
     def row(self) -> dict:
         """The JSON-ready numbers (no equilibria)."""
         return {"motion": self.motion, "state": self.state, "rho": self.rho, "energy": self.energy,
-                "energy_full": self.energy_full, "converged": self.converged}
+                "energy_full": self.energy_full, "converged": self.converged, "other_rho": self.other_rho}
 
 
 @dataclass(frozen=True)
@@ -80,6 +93,7 @@ class DesignEvaluation:
     islands_with_clutches: int
     clutch_ends_supported: int
     clutch_ends: int
+    loads: LoadReport | None = None
 
     @property
     def converged(self) -> bool:
@@ -99,7 +113,31 @@ class DesignEvaluation:
         return {"rho": self.rho(), "rows": [s.row() for s in self.states], "area": self.area,
                 "islands": self.islands, "islands_with_clutches": self.islands_with_clutches,
                 "clutch_ends_supported": self.clutch_ends_supported, "clutch_ends": self.clutch_ends,
-                "converged": self.converged}
+                "converged": self.converged, **(self.loads.to_json() if self.loads is not None else {})}
+
+
+@dataclass(frozen=True)
+class Equilibrium:
+    """The equilibrium kept for one state, and the other start's when it differs.
+
+    result : the kept StateResult (converged before unconverged, then the lower total
+    energy);  other : the other converged solution when the two store energies more than
+    :data:`MULTISTABLE` apart (relative), else None.
+    """
+
+    result: StateResult
+    other: StateResult | None = None
+
+
+def _pick(a: StateResult, b: StateResult) -> Equilibrium:
+    """The better of two solutions of one state (``a`` on ties) and whether they differ."""
+    if a.converged != b.converged:
+        return Equilibrium(a if a.converged else b)
+    if not a.converged:
+        return Equilibrium(a if a.convergence.residual <= b.convergence.residual else b)
+    keep, other = (a, b) if a.total_energy <= b.total_energy else (b, a)
+    apart = abs(keep.total_energy - other.total_energy) > MULTISTABLE * max(abs(keep.total_energy), 1e-300)
+    return Equilibrium(keep, other if apart else None)
 
 
 class Evaluator:
@@ -162,49 +200,60 @@ class Evaluator:
             self._reference.update({k: r for (k, _), r in zip(todo, done)})
         return [self._reference[k] for k, _ in keyed]
 
-    def equilibria(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]]) -> list[StateResult]:
-        """Equilibria of ``design`` (m,) in ``keyed`` states, from the starts that converge
-        (module docstring); a fully reinforced design returns the reference equilibria."""
+    def solve_design(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]],
+                     starts: list[np.ndarray] | None = None) -> list[Equilibrium]:
+        """Equilibria of ``design`` (m,) in ``keyed`` states from two starts (module
+        docstring): the skin-tight garment and ``starts`` (per state (N, 3) positions;
+        default: the fully reinforced garment's equilibria).  A fully reinforced design
+        returns the reference equilibria."""
         if np.all(design > 0.5):
-            return self.reference(keyed)
+            return [Equilibrium(r) for r in self.reference(keyed)]
         states = [s for _, s in keyed]
         setup = self.setup
+        starts = [r.x for r in self.reference(keyed)] if starts is None else list(starts)
         cold = solve_states(setup.model, design, states, options=setup.solver)
-        bad = [i for i, r in enumerate(cold) if not r.converged]
-        if not bad:
-            return cold
-        ref = self.reference([keyed[i] for i in bad])
-        retry = solve_states(setup.model, design, [states[i] for i in bad], warm_start=[r.x for r in ref],
-                             options=setup.solver)
-        for i, r in zip(bad, retry):
-            if r.converged or r.convergence.residual < cold[i].convergence.residual:
-                cold[i] = r
-        for i in [i for i in bad if not cold[i].converged and any(a > 0 for a in states[i].activation)]:
-            r = activation_continuation(setup, design, states[i])
-            if r.converged or r.convergence.residual < cold[i].convergence.residual:
-                cold[i] = r
-        return cold
+        warm = solve_states(setup.model, design, states, warm_start=starts, options=setup.solver)
+        out = [_pick(a, b) for a, b in zip(cold, warm)]
+        for i, e in enumerate(out):
+            if not e.result.converged and any(a > 0 for a in states[i].activation):
+                r = activation_continuation(setup, design, states[i])
+                if r.converged or r.convergence.residual < e.result.convergence.residual:
+                    out[i] = _pick(r, e.result)
+        return out
 
-    def evaluate(self, design: np.ndarray, motions=None, *, report: Callable[[str], None] | None = None,
+    def equilibria(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]],
+                   starts: list[np.ndarray] | None = None) -> list[StateResult]:
+        """The kept equilibrium of :meth:`solve_design` per state."""
+        return [e.result for e in self.solve_design(design, keyed, starts)]
+
+    def evaluate(self, design: np.ndarray, motions=None, *, loads: bool = False,
+                 report: Callable[[str], None] | None = None,
                  cancelled: Callable[[], bool] | None = None) -> DesignEvaluation:
         """Evaluate ``design`` (m,) (> 0.5 = reinforced) on ``motions`` (default: all).
 
         All states are solved together (in worker processes when the solver has them);
         with ``report`` or ``cancelled`` (the studio) one state at a time instead:
         ``report(text)`` before each solve, ``cancelled()`` checked between solves (raises
-        :class:`Cancelled`).  The numbers are the same either way.
+        :class:`Cancelled`).  The numbers are the same either way.  ``loads``: also the
+        per-clutch load report (:func:`kgarment.design.loads.clutch_loads`; clutched
+        objectives only).
         """
         design = np.asarray(design, dtype=np.float64)
         if design.shape != (self.n_faces,):
             raise KgarmentError(f"the design has {design.size} faces, the garment {self.n_faces}")
         keyed = self.keyed(motions)
         if report is None and cancelled is None:
-            pairs = list(zip(self.reference(keyed), self.equilibria(design, keyed)))
+            pairs = list(zip(self.reference(keyed), self.solve_design(design, keyed)))
         else:
             pairs = [self._one(design, k, i, len(keyed), report, cancelled) for i, k in enumerate(keyed)]
-        return self._summarise(design, keyed, pairs)
+        ev = self._summarise(design, keyed, pairs)
+        if loads and self.setup.n_clutches and self.setup.objective != "passive":
+            known = {s.key: s.result for s in ev.states if s.state in ("on", "off")}
+            motions = list(dict.fromkeys(s.motion for s in ev.states))
+            ev = dataclasses.replace(ev, loads=clutch_loads(self, design, motions, known))
+        return ev
 
-    def _one(self, design, keyed_state, i: int, n: int, report, cancelled) -> tuple[StateResult, StateResult]:
+    def _one(self, design, keyed_state, i: int, n: int, report, cancelled) -> tuple[StateResult, Equilibrium]:
         """The reference and the design's equilibrium of one state, reporting and checking
         for a stop request before each solve."""
         (motion, state), _ = keyed_state
@@ -215,19 +264,22 @@ class Evaluator:
                 report(f"{what}, {motion} {state} ({2 * i + 1 + k}/{2 * n})")
             if k == 0:
                 full = self.reference([keyed_state])[0]
-        return full, self.equilibria(design, [keyed_state])[0]
+        return full, self.solve_design(design, [keyed_state])[0]
 
     def _summarise(self, design, keyed, pairs) -> DesignEvaluation:
         setup = self.setup
         clutched = setup.objective != "passive"
         solid = design > 0.5
         rows = []
-        for ((motion, state), _), (rf, rd) in zip(keyed, pairs):
-            sf, sd = Stored.of(rf, clutched), Stored.of(rd, clutched)
+        for ((motion, state), _), (rf, eq) in zip(keyed, pairs):
+            sf, sd = Stored.of(rf, clutched), Stored.of(eq.result, clutched)
+            rho = relative_energy_density(design, setup.areas, sd, sf, setup.clutch_area)
+            other = None if eq.other is None else \
+                relative_energy_density(design, setup.areas, Stored.of(eq.other, clutched), sf, setup.clutch_area)
             rows.append(StateEvaluation(
-                motion, state, relative_energy_density(design, setup.areas, sd, sf, setup.clutch_area),
-                float(sd.face_energy[solid].sum() + sd.clutch_energy), float(sf.face_energy.sum() + sf.clutch_energy),
-                bool(rf.converged and rd.converged), rd, rf))
+                motion, state, rho, float(sd.face_energy[solid].sum() + sd.clutch_energy),
+                float(sf.face_energy.sum() + sf.clutch_energy), bool(rf.converged and eq.result.converged), other,
+                eq.result, rf))
         ends = clutch_end_support(design, setup.end_faces)
         faces = setup.model.garment_faces
         return DesignEvaluation(

@@ -9,7 +9,7 @@ One iteration (:func:`iterate`) is four steps, each a function of the frozen
 2. :func:`sensitivities`: element energy densities -> sensitivities, combined by the
    objective, filtered, averaged with the previous iteration's;
 3. :func:`metrics_row`: the iteration's metrics (area, objective, rho per state, islands,
-   clutch ends, solver effort);
+   clutch ends, the tension each clutch carries in each ON state, solver effort);
 4. :func:`advance`: the next state (a new design towards the next target area, or done).
 
 An iteration in which a state did not converge records its metrics (flagged in
@@ -38,6 +38,7 @@ from kgarment.sim import (
     SimState,
     SolverOptions,
     StateResult,
+    clutch_tensions,
     log_stiffness_derivative,
     solve_states,
 )
@@ -175,7 +176,20 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
     row.update({f"rho[{k[0]}:{k[1]}]": relative_energy_density(design, areas, solved.stored[k], reference_stored[k],
                                                                setup.clutch_area) for k in solved.stored})
     row.update({f"energy[{k[0]}:{k[1]}]": v for k, v in solved.energy.items()})
+    row.update(tension_columns(setup, st.design, solved))
     return row
+
+
+def tension_columns(setup: DesignSetup, design: np.ndarray, solved: Solved) -> dict[str, float]:
+    """``tension[motion:clutch]``: N carried along each clutch in each motion's ON state
+    (:func:`kgarment.sim.clutch_tensions`; cheap, from the equilibria already solved)."""
+    out = {}
+    names = [c.name for c in setup.model.clutches]
+    for key, state, r in zip(solved.keys, solved.states, solved.results):
+        if key[1] == "on" and names:
+            t = clutch_tensions(setup.model, design, state, r.x, solved.options)
+            out.update({f"tension[{key[0]}:{n}]": float(v) for n, v in zip(names, t)})
+    return out
 
 
 def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray, row: dict,

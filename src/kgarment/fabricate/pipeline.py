@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.clutch import ClutchStrip
 from kgarment.design.beso import design_values
 from kgarment.errors import KgarmentError
 from kgarment.fabricate.bom import write_bom, write_report
@@ -17,6 +18,7 @@ from kgarment.fabricate.export3d import face_patch_index, write_3d
 from kgarment.fabricate.layout import Sheet, layout_sheet
 from kgarment.fabricate.patterns import PatternOptions, PatternSet, make_patterns
 from kgarment.fabricate.preview import PAPERS, write_pdf
+from kgarment.garment import Garment
 from kgarment.io import atomic_save_npz
 
 log = logging.getLogger(__name__)
@@ -49,8 +51,8 @@ class Fabrication:
     and seams; sheet : the cutting layout (mm); options : the options used.
     """
 
-    garment: object
-    strips: tuple
+    garment: Garment
+    strips: tuple[ClutchStrip, ...]
     design: np.ndarray
     cleanup: CleanupResult
     patterns: PatternSet

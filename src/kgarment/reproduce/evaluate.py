@@ -69,14 +69,15 @@ class CachedEvaluator:
     def n_states(self) -> int:
         return len(self.setup.states())
 
-    def evaluate(self, design: np.ndarray, label: str = "") -> dict:
-        """rho ON/OFF per motion and the structural metrics of ``design`` (m,):
-        :meth:`kgarment.design.DesignEvaluation.to_json` with ``label``."""
+    def evaluate(self, design: np.ndarray, label: str = "", loads: bool = False) -> dict:
+        """rho ON/OFF per motion and the structural metrics of ``design`` (m,) (and with
+        ``loads`` the per-clutch loads): :meth:`kgarment.design.DesignEvaluation.to_json`
+        with ``label``."""
         design = np.asarray(design, dtype=np.float64)
-        key = f"{self.name}|{design_key(design)}"
+        key = f"{self.name}|{design_key(design)}" + ("|loads" if loads else "")
         if self.cache is not None and (hit := self.cache.get(key)) is not None:
             return hit
-        out = {"label": label, **self.evaluator.evaluate(design).to_json()}
+        out = {"label": label, **self.evaluator.evaluate(design, loads=loads).to_json()}
         if self.cache is not None:
             self.cache.put(key, out)
         return out

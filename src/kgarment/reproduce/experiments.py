@@ -94,7 +94,8 @@ def design_run(problem: Problem, folder: Path, device: str = "cpu",
             dr = open_run(None, folder, resume=True, device=device)
         else:  # nothing computed yet: a partial folder without a checkpoint holds nothing to lose
             dr = open_run(problem, folder, force=True, device=device)
-        finish(dr, progress=(lambda st: progress(folder.name, st.metrics[-1])) if progress else None)
+        finish(dr, progress=(lambda st: progress(folder.name, st.metrics[-1])) if progress else None,
+               evaluate=False)  # the reproduction evaluates every design itself
     rows = json.loads((folder / "metrics.json").read_text())
     hist = load_design_history(folder)
     beso = problem.design.beso

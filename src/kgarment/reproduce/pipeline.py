@@ -84,7 +84,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
              "evaluations": {}, "images": {}}
     for kind, d in designs.items():
         log.info("%s: evaluating the %s design", exp.name, kind)
-        entry["evaluations"][kind] = ev.evaluate(d, kind)
+        entry["evaluations"][kind] = ev.evaluate(d, kind, loads=True)
     entry["evaluations"]["random"] = [ev.evaluate(random_design(g.rest_vertices, g.faces, budget, seed), f"random {seed}")
                                       for seed in range(res.seeds)]
     for kind in ("ours", "compliance", "line"):

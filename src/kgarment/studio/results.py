@@ -24,7 +24,9 @@ class SimResult:
     computed for;  design : (m,) bool;  rows : per (motion, state) the evaluator's numbers
     (motion, state, rho, energy J, energy_full J, converged);  garment_x : {(motion, state):
     (n, 3) equilibrium positions, m};  density : {(motion, state): (m,) energy density,
-    J/m^2};  clutch_x : {(motion, state): [(nc, 3) positions of each clutch, m]}.
+    J/m^2};  clutch_x : {(motion, state): [(nc, 3) positions of each clutch, m]};  loads :
+    per (motion, clutch) the share of the ON - OFF energy, tension N and loaded flag
+    (:mod:`kgarment.design.loads`; empty without clutches).
     """
 
     label: str
@@ -34,6 +36,7 @@ class SimResult:
     garment_x: dict[StateKey, np.ndarray] = field(default_factory=dict, repr=False)
     density: dict[StateKey, np.ndarray] = field(default_factory=dict, repr=False)
     clutch_x: dict[StateKey, list[np.ndarray]] = field(default_factory=dict, repr=False)
+    loads: tuple[dict, ...] = ()
 
     @classmethod
     def of(cls, label: str, revision: int, evaluation: DesignEvaluation, model: SimModel) -> SimResult:
@@ -45,8 +48,12 @@ class SimResult:
             garment_x[s.key] = np.asarray(gx).copy()
             density[s.key] = np.asarray(s.result.garment_density).copy()
             clutch_x[s.key] = [np.asarray(x).copy() for x in cx]
+        loads = () if evaluation.loads is None else tuple(c.row() for c in evaluation.loads.clutches)
         return cls(label, revision, np.asarray(evaluation.design, bool).copy(),
-                   tuple(s.row() for s in evaluation.states), garment_x, density, clutch_x)
+                   tuple(s.row() for s in evaluation.states), garment_x, density, clutch_x, loads)
+
+    def load(self, motion: str, clutch: str) -> dict | None:
+        return next((r for r in self.loads if r["motion"] == motion and r["clutch"] == clutch), None)
 
     def row(self, motion: str, state: str) -> dict | None:
         return next((r for r in self.rows if r["motion"] == motion and r["state"] == state), None)
@@ -62,7 +69,8 @@ class SimResult:
 
     def to_json(self) -> dict:
         """What a session's results.json holds of it (no equilibria)."""
-        return {"label": self.label, "revision": self.revision, "rows": [dict(r) for r in self.rows]}
+        return {"label": self.label, "revision": self.revision, "rows": [dict(r) for r in self.rows],
+                "clutches": [dict(r) for r in self.loads]}
 
 
 def results_table(a: SimResult | None, b: SimResult | None, stale_a: bool = False) -> str:
@@ -79,7 +87,20 @@ def results_table(a: SimResult | None, b: SimResult | None, stale_a: bool = Fals
             row = e.row(m, s)
             cells.append("" if row is None else f"{row['rho']:.3f}" + ("" if row["converged"] else " (nc)"))
         lines.append(f"| {m} | {s} | " + " | ".join(cells) + " |")
+    pairs = list(dict.fromkeys((r["motion"], r["clutch"]) for e in evs for r in e.loads))
+    if pairs:
+        lines += ["", "| motion | clutch | " + " | ".join(f"share {e.label} / N" for e in evs) + " |",
+                  "|---|---|" + "---:|" * len(evs)]
+        for m, c in pairs:
+            cells = []
+            for e in evs:
+                r = e.load(m, c)
+                cells.append("" if r is None else f"{r['share']:.2f} / {r['tension_N']:.0f}" + (" *" if r["loaded"] else ""))
+            lines.append(f"| {m} | {c} | " + " | ".join(cells) + " |")
     notes = []
+    if pairs:
+        notes.append("share: of the ON - OFF energy with only that clutch ON; N: its tension with all ON; "
+                     "*: loaded (share >= 0.1).")
     if stale_a and a is not None:
         notes.append("A was simulated before the latest edits.")
     if any(not r["converged"] for e in evs for r in e.rows):

@@ -75,10 +75,11 @@ def simulate_design(evaluator: Evaluator, design: np.ndarray, motions: Sequence[
                     cancelled: Callable[[], bool] | None = None) -> SimResult:
     """Simulate ``design`` (m,) bool (True = reinforced) on ``motions`` in the states of the
     problem's objective (ON and OFF for "active"), one state at a time: ``report(text)``
-    before each solve, ``cancelled()`` between solves (raises kgarment.errors.Cancelled)."""
+    before each solve, ``cancelled()`` between solves (raises kgarment.errors.Cancelled);
+    then the load each clutch carries (one more solve per clutch and motion)."""
     if not motions:
         raise KgarmentError("pick at least one motion to simulate")
-    ev = evaluator.evaluate(design_values(design), list(motions),
+    ev = evaluator.evaluate(design_values(design), list(motions), loads=True,
                             report=None if report is None else (lambda text: report(f"{label}: {text}")),
                             cancelled=cancelled if cancelled is not None else (lambda: False))
     return SimResult.of(label, revision, ev, evaluator.setup.model)

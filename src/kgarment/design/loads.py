@@ -1,0 +1,184 @@
+"""What each clutch does for a design: its share of the ON - OFF energy and its tension.
+
+Per motion and clutch k (method.md section 9):
+
+* ``share``: garment energy with only clutch k ON minus all OFF, over all ON minus all
+  OFF.  A clutch that is not at a junction of reinforcement has share ~0 ("if clutches are
+  not at junctures, then their activation will have no effect on the user"); the only
+  load path has share ~1.  Shares of several clutches need not add to 1 (paths in series
+  or in parallel);
+* ``tension_N``: the force carried along the clutch at the target pose with all clutches
+  ON (:func:`kgarment.sim.clutch_tensions`, what a load cell in its place measures);
+* ``loaded``: share >= :data:`kgarment.constants.LOADED_SHARE`.
+
+Garment energy is the total energy of an equilibrium (J): what the wearer works against
+when moving from the rest pose into the target pose.  The all-ON and all-OFF equilibria
+come from the one design evaluator (:meth:`kgarment.design.Evaluator.solve_design`: its
+two starts, the evaluation tolerance); a state with one clutch ON starts from the all-ON
+equilibrium with the other clutches switched off and is solved to
+:data:`kgarment.constants.LOAD_TOL` (shares need per cent, not digits: at 1e-3 energies
+are accurate to ~1e-6, ``kgarment.sim.options``), falling back to the evaluator's starts
+when that does not converge.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from kgarment.constants import LOAD_TOL, LOADED_SHARE
+from kgarment.sim import StateResult, clutch_tensions, solve_states
+
+
+@dataclass(frozen=True)
+class ClutchLoad:
+    """One clutch in one motion: share (dimensionless), tension_N (N), loaded."""
+
+    motion: str
+    clutch: str
+    share: float
+    tension_N: float
+    loaded: bool
+
+    def row(self) -> dict:
+        return {"motion": self.motion, "clutch": self.clutch, "share": self.share, "tension_N": self.tension_N,
+                "loaded": self.loaded}
+
+
+@dataclass(frozen=True)
+class MotionEnergy:
+    """The whole garment's energy in one motion with all clutches ON and OFF (J)."""
+
+    motion: str
+    energy_on_J: float
+    energy_off_J: float
+
+    def row(self) -> dict:
+        return {"motion": self.motion, "energy_on_J": self.energy_on_J, "energy_off_J": self.energy_off_J}
+
+
+@dataclass(frozen=True)
+class LoadReport:
+    """Per-clutch loads and per-motion garment energies of one design."""
+
+    clutches: tuple[ClutchLoad, ...]
+    garment: tuple[MotionEnergy, ...]
+
+    @property
+    def clutch_names(self) -> list[str]:
+        return list(dict.fromkeys(c.clutch for c in self.clutches))
+
+    @property
+    def motions(self) -> list[str]:
+        return [g.motion for g in self.garment]
+
+    def get(self, motion: str, clutch: str) -> ClutchLoad:
+        return next(c for c in self.clutches if c.motion == motion and c.clutch == clutch)
+
+    def unloaded(self) -> list[str]:
+        """Clutches loaded in none of the motions."""
+        return [n for n in self.clutch_names if not any(c.loaded for c in self.clutches if c.clutch == n)]
+
+    def to_json(self) -> dict:
+        return {"clutches": [c.row() for c in self.clutches], "garment": [g.row() for g in self.garment]}
+
+    def table(self) -> str:
+        """A plain-text table: per motion the garment energy ON/OFF, per clutch share and
+        tension (``*``: loaded)."""
+        names = self.clutch_names
+        head = f"{'motion':22s} {'E on (J)':>10s} {'E off (J)':>10s}  " + "  ".join(f"{n[:16]:>16s}" for n in names)
+        lines = [head, f"{'':22s} {'':>10s} {'':>10s}  " + "  ".join(f"{'share / N':>16s}" for _ in names)]
+        for g in self.garment:
+            cells = []
+            for n in names:
+                c = self.get(g.motion, n)
+                share = "  n/a" if not math.isfinite(c.share) else f"{c.share:5.2f}"
+                cells.append(f"{share} / {c.tension_N:6.1f}{'*' if c.loaded else ' '}".rjust(16))
+            lines.append(f"{g.motion[:22]:22s} {g.energy_on_J:10.4g} {g.energy_off_J:10.4g}  " + "  ".join(cells))
+        return "\n".join(lines)
+
+
+def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None = None) -> LoadReport:
+    """The :class:`LoadReport` of ``design`` (m,) on ``motions`` (default: all).
+
+    evaluator : kgarment.design.Evaluator (with clutches);  known : {(motion, "on" | "off"):
+    StateResult} equilibria already solved (by :meth:`Evaluator.evaluate`), reused.
+    """
+    setup = evaluator.setup
+    model = setup.model
+    names = [c.name for c in model.clutches]
+    motions = evaluator.motion_names(motions)
+    known = dict(known or {})
+    K = len(names)
+    ends = evaluator.activation_states(np.ones(K), motions, "on") + \
+        evaluator.activation_states(np.zeros(K), motions, "off")
+    todo = [(key, st) for key, st in ends if key not in known]
+    if todo:
+        known.update(zip([key for key, _ in todo], evaluator.equilibria(design, todo)))
+    singles = []
+    for k, name in enumerate(names):
+        singles += evaluator.activation_states(np.eye(K)[k], motions, f"only {name}")
+    # a single clutch's state starts from the all-ON equilibrium (the others switched off) and
+    # is solved to LOAD_TOL; states that do not converge so go through the evaluator's starts
+    opts = dataclasses.replace(setup.solver, tol=max(setup.solver.tol, LOAD_TOL))
+    solved = solve_states(model, design, [st for _, st in singles],
+                          warm_start=[known[(key[0], "on")].x for key, _ in singles], options=opts)
+    known.update({key: r for (key, _), r in zip(singles, solved) if r.converged})
+    retry = [(key, st) for key, st in singles if key not in known]
+    if retry:
+        known.update(zip([key for key, _ in retry], evaluator.equilibria(design, retry)))
+    wanted = ends + singles
+    states = dict(wanted)
+    loads, garment = [], []
+    for m in motions:
+        on: StateResult = known[(m, "on")]
+        off: StateResult = known[(m, "off")]
+        e_on, e_off = on.total_energy, off.total_energy
+        garment.append(MotionEnergy(m, e_on, e_off))
+        tension = clutch_tensions(model, design, states[(m, "on")], on.x, setup.solver)
+        for k, name in enumerate(names):
+            gain = e_on - e_off
+            share = (known[(m, f"only {name}")].total_energy - e_off) / gain if gain > 1e-12 * max(e_on, 1e-300) \
+                else float("nan")
+            loads.append(ClutchLoad(m, name, float(share), float(tension[k]), bool(share >= LOADED_SHARE)))
+    return LoadReport(tuple(loads), tuple(garment))
+
+
+def load_chart(report: LoadReport, path, title: str = "") -> Path:
+    """A bar chart per motion: each clutch's share of the ON - OFF energy (bars, left axis)
+    and its tension in newtons (labels), with the loaded threshold drawn; a PNG at ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names, motions = report.clutch_names, report.motions
+    fig, axes = plt.subplots(1, len(motions), figsize=(max(3.2 * len(motions), 4.5), 3.4), dpi=100, sharey=True,
+                             squeeze=False)
+    for ax, m in zip(axes[0], motions):
+        loads = [report.get(m, n) for n in names]
+        shares = [0.0 if not math.isfinite(c.share) else c.share for c in loads]
+        colors = ["#2a9d8f" if c.loaded else "#bbbbbb" for c in loads]
+        bars = ax.bar(range(len(names)), shares, color=colors)
+        for b, c in zip(bars, loads):
+            ax.annotate(f"{c.tension_N:.0f} N", (b.get_x() + b.get_width() / 2, max(b.get_height(), 0.0)),
+                        ha="center", va="bottom", fontsize=7)
+        ax.axhline(LOADED_SHARE, color="#e76f51", lw=0.8, ls="--")
+        ax.set_xticks(range(len(names)), names, rotation=30, ha="right", fontsize=7)
+        ax.set_title(m, fontsize=9)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0][0].set_ylabel("share of the ON - OFF energy")
+    axes[0][0].set_ylim(min(0.0, *[c.share for c in report.clutches if math.isfinite(c.share)]) - 0.05,
+                        max(1.05, *[c.share for c in report.clutches if math.isfinite(c.share)]) + 0.1)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path

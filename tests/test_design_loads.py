@@ -1,0 +1,56 @@
+"""Per-clutch load: the share of the ON - OFF energy and the tension (method.md section 9)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kgarment.design import Evaluator
+from kgarment.design.loads import load_chart
+from kgarment.design.setup import DesignSetup
+from kgarment.problem import BesoParams
+from kgarment.sim import SolverOptions, build_model
+from kgarment.sim.synthetic import Tube
+
+
+@pytest.fixture(scope="module")
+def tube_loads():
+    """A tube (30 cm long, 5 cm radius) stretched 5% along its axis, with two 14 cm clutches
+    on opposite sides, ``paper`` materials (cloth 0.5 MPa, reinforcement 0.5 GPa, clutch ON
+    3 GPa).  Reinforced: two bands 2.6 cm wide along the first clutch, from the held bottom
+    ring to its start and from its end to the pulled top ring, so that this clutch is the
+    only stiff link in series between them: switching it on alone must give all the ON -
+    OFF energy (share 1).  The second clutch sits on plain cloth, 1/6000 of its stiffness:
+    its ends cannot hold it, so switching it on changes almost nothing (share 0)."""
+    tube = Tube(0.05, 0.0, 0.3, 48, 31)
+    clutches = [tube.clutch("linked", 0.0, 0.08, 0.22, 0.01, 28), tube.clutch("loose", np.pi, 0.08, 0.22, 0.01, 28)]
+    model = build_model(tube.vertices, tube.faces, clutches, preset="paper")
+    motion = tube.motion("pull", 0.05, 0.0)
+    c = tube.vertices[tube.faces].mean(axis=1)
+    theta = np.arctan2(c[:, 1], c[:, 0])
+    band = np.abs(theta) < 0.26  # 2.6 cm of arc
+    reinforced = band & ((c[:, 2] < 0.095) | (c[:, 2] > 0.205))
+    design = np.where(reinforced, 1.0, 1e-3)
+    setup = DesignSetup.build(model, {"pull": motion}, "active", BesoParams(), SolverOptions(tol=1e-5, max_iter=300))
+    return Evaluator(setup).evaluate(design, loads=True)
+
+
+def test_the_only_load_path_carries_everything_and_a_loose_clutch_nothing(tube_loads):
+    loads = tube_loads.loads
+    linked, loose = loads.get("pull", "linked"), loads.get("pull", "loose")
+    assert linked.share == pytest.approx(1.0, abs=0.05) and linked.loaded
+    assert abs(loose.share) < 0.03 and not loose.loaded
+    assert loads.unloaded() == ["loose"]
+    (g,) = loads.garment
+    assert g.energy_on_J > 3 * g.energy_off_J > 0  # switching the linked clutch on resists the pull
+    assert linked.tension_N > 10 * abs(loose.tension_N)
+
+
+def test_loads_in_json_and_chart(tube_loads, tmp_path):
+    doc = tube_loads.to_json()
+    assert {c["clutch"] for c in doc["clutches"]} == {"linked", "loose"}
+    assert set(doc["clutches"][0]) == {"motion", "clutch", "share", "tension_N", "loaded"}
+    assert set(doc["garment"][0]) == {"motion", "energy_on_J", "energy_off_J"}
+    assert "linked" in tube_loads.loads.table()
+    png = load_chart(tube_loads.loads, tmp_path / "loads.png", "tube")
+    assert png.stat().st_size > 5000
