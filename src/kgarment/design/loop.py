@@ -10,7 +10,8 @@ One iteration (:func:`iterate`) is four steps, each a function of the frozen
    objective, filtered, averaged with the previous iteration's;
 3. :func:`metrics_row`: the iteration's metrics (area, objective, rho per state, islands,
    clutch ends, the tension each clutch carries in each ON state, solver effort);
-4. :func:`advance`: the next state (a new design towards the next target area, or done).
+4. :func:`advance`: the next state (a new design towards the next target area, repaired
+   into one part holding every clutch end unless ``connected`` is off, or done).
 
 An iteration in which a state did not converge records its metrics (flagged in
 ``unconverged_states``) but updates the design with the previous iteration's filtered
@@ -30,7 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kgarment.design.beso import converged, next_target, update_design
+from kgarment.design.beso import converged, design_values, next_target, update_design
+from kgarment.design.connect import connect_design
 from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
 from kgarment.design.objective import combine_sensitivities, objective_value
 from kgarment.design.setup import DesignSetup, StateKey
@@ -204,6 +206,9 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
     if not done:
         target = next_target(st.target, p)
         design = update_design(st.design, filt, setup.areas, target, p)
+        if p.connected and setup.ends:
+            design = design_values(connect_design(design > 0.5, filt, setup.areas, target, setup.adjacency,
+                                                  setup.end_faces, setup.attached, setup.loop_faces))
         if setup.protected is not None:
             design[setup.protected] = 1.0
     warm = {s.name: r.x if r.converged or r.convergence.residual <= WARM_MAX_RESIDUAL or s.name not in st.warm

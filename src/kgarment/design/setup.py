@@ -16,7 +16,7 @@ import scipy.sparse as sp
 from kgarment.design.beso import one_ring_filter, radius_filter
 from kgarment.design.objective import states_needed
 from kgarment.garment import Garment
-from kgarment.garment.topology import face_adjacency, triangle_areas
+from kgarment.garment.topology import boundary_loops, face_adjacency, triangle_areas
 from kgarment.problem import BesoParams, Problem, build_model, solver_options
 from kgarment.sim import Motion, SimModel, SimState, SolverOptions, garment_motions
 
@@ -46,7 +46,9 @@ class DesignSetup:
     ``solver``; see ``kgarment.problem.SolverSpec``);  protected : (m,) bool faces kept
     reinforced, or None;  areas : (m,) rest face areas, m^2;  filter_matrix : (m, m) CSR
     sensitivity filter;  adjacency : (m, m) CSR face adjacency;  ends : one ClutchEnds per
-    clutch;  clutch_area : total rest area of the clutches, m^2 (0 for the passive objective).
+    clutch;  clutch_area : total rest area of the clutches, m^2 (0 for the passive objective);
+    attached : (a,) attachment faces;  loop_faces : per boundary loop of the garment, the
+    faces touching it (both for :func:`kgarment.design.connect.connect_design`).
     """
 
     model: SimModel
@@ -61,6 +63,8 @@ class DesignSetup:
     adjacency: sp.csr_matrix = field(repr=False)
     ends: tuple[ClutchEnds, ...] = ()
     clutch_area: float = 0.0
+    attached: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64), repr=False)
+    loop_faces: tuple[np.ndarray, ...] = field(default=(), repr=False)
 
     @classmethod
     def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
@@ -78,8 +82,13 @@ class DesignSetup:
             a, bind = np.asarray(c.anchors), np.asarray(c.bind_face)
             ends.append(ClutchEnds(bind[a[[0, 1, 2]]], bind[a[[3, 4, 5]]]))
         clutch_area = sum(float(triangle_areas(c.vertices, c.faces).sum()) for c in model.clutches)
+        attached = np.unique(np.concatenate([np.asarray(m.attach_faces) for m in motions.values()] or [[]]))
+        on_vertex = sp.csr_matrix((np.ones(F.size), (F.ravel(), np.repeat(np.arange(len(F)), 3))),
+                                  shape=(len(X), len(F)))
+        loops = tuple(np.unique(on_vertex[loop].indices) for loop in boundary_loops(F))
         return cls(model, dict(motions), objective, params, solver, evolution_solver, protected, areas, filt,
-                   face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0)
+                   face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0,
+                   attached.astype(np.int64), loops)
 
     @property
     def n_clutches(self) -> int:

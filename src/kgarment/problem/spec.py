@@ -68,6 +68,8 @@ class BesoParams:
     tol, window : converged when the target is reached and the objective changed less than
         ``tol`` (relative) over ``window`` iterations.
     max_iterations : hard stop.
+    connected : repair every update into one part holding every clutch end
+    (:mod:`kgarment.design.connect`); False is the paper's plain BESO.
 
     The material interpolation (``p``, ``x_min``) is the simulator's
     (:data:`kgarment.constants.PENALTY`, :data:`kgarment.constants.X_MIN`).
@@ -82,6 +84,7 @@ class BesoParams:
     tol: float = C.CONVERGENCE_TOL
     window: int = C.WINDOW
     max_iterations: int = C.MAX_ITERATIONS
+    connected: bool = True
 
     def reached(self, area: float) -> bool:
         """Whether the reinforced area share ``area`` is at A* (:func:`kgarment.constants.target_reached`)."""

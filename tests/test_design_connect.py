@@ -1,0 +1,111 @@
+"""The connected BESO update on flat strips: a cut series link restored, islands dropped,
+a band around the body recognised as held, proposals already in one piece left alone."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kgarment.design.connect import anchored, connect_design
+from kgarment.design.metrics import clutch_end_support, islands
+from kgarment.garment.topology import face_adjacency, triangle_areas
+
+
+def strip(nx: int = 61, ny: int = 21, length: float = 0.3, width: float = 0.1):
+    """A flat length x width strip: vertices (n, 3), faces (m, 3), centroids (m, 3), areas
+    (m,) and the faces of its left and right short edges (held, like attachment rings)."""
+    xs, ys = np.linspace(-length / 2, length / 2, nx), np.linspace(-width / 2, width / 2, ny)
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    v = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], 1)
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="ij")
+    a = (i * ny + j).ravel()
+    f = np.concatenate([np.stack([a, a + ny, a + ny + 1], 1), np.stack([a, a + ny + 1, a + 1], 1)])
+    c = v[f].mean(axis=1)
+    edge = length / 2 - 0.006
+    return v, f, c, triangle_areas(v, f), np.flatnonzero(np.abs(c[:, 0]) > edge)
+
+
+def ends_at(c, x0, x1, y=0.0):
+    """The 3 faces nearest to (x0, y) and to (x1, y): a clutch from x0 to x1."""
+    near = lambda x: np.argsort(np.hypot(c[:, 0] - x, c[:, 1] - y))[:3]  # noqa: E731
+    return near(x0), near(x1)
+
+
+def test_a_proposal_that_holds_every_clutch_is_left_alone():
+    v, f, c, areas, held = strip()
+    ends = [ends_at(c, -0.04, 0.04)]
+    band = np.abs(c[:, 1]) < 0.02  # a band from the left edge to the right edge along the clutch
+    alpha = np.where(band, 1.0, 0.0) + 1e-3 * c[:, 0]
+    target = areas[band].sum() / areas.sum()
+    out = connect_design(band, alpha, areas, target, face_adjacency(f), ends, held)
+    np.testing.assert_array_equal(out, band)
+
+
+def test_a_cut_series_link_is_restored_and_islands_dropped():
+    """A clutch in the middle of a strip held at both short edges.  BESO proposes the left
+    half up to the clutch's start, a patch around its end that stops 2 cm short of the right
+    edge (the link ranks low), and a loose patch: the repair joins the clutch's end to the
+    right edge (so the clutch is in series between the held edges), drops the loose patch
+    and keeps the area."""
+    v, f, c, areas, held = strip()
+    ends = [ends_at(c, -0.04, 0.04)]
+    band = np.abs(c[:, 1]) < 0.02
+    left = band & (c[:, 0] < -0.03)
+    right = band & (c[:, 0] > 0.03) & (c[:, 0] < 0.125)
+    loose = (np.abs(c[:, 0]) < 0.02) & (c[:, 1] > 0.035)
+    proposal = left | right | loose
+    alpha = np.where(left | right, 1.0, 0.05) + np.where(loose, 0.5, 0.0) - 0.01 * np.abs(c[:, 1])
+    target = areas[left | right | loose].sum() / areas.sum()
+    adj = face_adjacency(f)
+    out = connect_design(proposal, alpha, areas, target, adj, ends, held)
+    assert not (out & loose).any()
+    assert all(a and b for a, b in clutch_end_support(out, ends))
+    assert islands(f, out, links=ends) == 1
+    assert islands(f, out) == 2  # in two parts without the clutch: the clutch is their only link
+    assert (out & (c[:, 0] > 0.14)).any()  # the right part reaches the held edge
+    assert abs(areas[out].sum() / areas.sum() - target) < 3 * areas.max() / areas.sum()
+
+
+def test_two_clutches_in_a_v_are_joined_at_their_meeting_ends():
+    """Two clutches from the held edges' parts towards the middle; BESO drops the pad
+    joining their inner ends: the repair puts it back, so the chain left part - clutch -
+    pad - clutch - right part holds (and no reinforced path bypasses the clutches)."""
+    v, f, c, areas, held = strip()
+    ends = [ends_at(c, -0.10, -0.015), ends_at(c, 0.10, 0.015)]
+    band = np.abs(c[:, 1]) < 0.015
+    outer = band & (np.abs(c[:, 0]) > 0.09)
+    pad = band & (np.abs(c[:, 0]) < 0.03)
+    alpha = np.where(outer, 1.0, 0.02) - 0.01 * np.abs(c[:, 1])
+    target = areas[outer | pad].sum() / areas.sum()
+    adj = face_adjacency(f)
+    out = connect_design(outer, alpha, areas, target, adj, ends, held)
+    assert all(a and b for a, b in clutch_end_support(out, ends))
+    assert islands(f, out, links=ends) == 1 and islands(f, out) == 3
+    assert not (out & (np.abs(c[:, 0]) > 0.04) & (np.abs(c[:, 0]) < 0.08)).any()  # no bypass
+
+
+def test_a_band_around_a_tube_is_held_an_open_patch_is_not():
+    """On a tube (two boundary rings, nothing attached) a band around it separates the two
+    openings (the body cannot slip out of it); a patch on one side does not."""
+    from kgarment.garment.topology import boundary_loops
+    from kgarment.sim.synthetic import Tube
+
+    tube = Tube(0.05, 0.0, 0.3, 24, 16)
+    f = tube.faces
+    c = tube.vertices[f].mean(axis=1)
+    n = len(tube.vertices)
+    loops = [np.flatnonzero(np.isin(f, loop).any(axis=1)) for loop in boundary_loops(f)]
+    assert len(loops) == 2 and n > 0
+    adj = face_adjacency(f)
+    band = np.abs(c[:, 2] - 0.15) < 0.03
+    patch = band & (c[:, 0] > 0.02)
+    assert anchored(band, adj, np.zeros(0, int), loops)[band].all()
+    assert not anchored(patch, adj, np.zeros(0, int), loops).any()
+    ring = np.flatnonzero(c[:, 2] < 0.02)
+    assert anchored(patch | np.isin(np.arange(len(f)), ring), adj, ring, loops)[ring].all()
+
+
+def test_no_clutches_no_change():
+    v, f, c, areas, held = strip(21, 11)
+    solid = c[:, 0] > 0.05
+    out = connect_design(solid, c[:, 0], areas, 0.2, face_adjacency(f), [], held)
+    np.testing.assert_array_equal(out, solid)
