@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from kgarment.garment.topology import triangle_areas
-from kgarment.reproduce.baselines import line_design, line_paths, random_design
+from kgarment.reproduce.baselines import manual_design, random_design
 
 
 def grid(n: int = 20, size: float = 0.2):
@@ -30,29 +30,47 @@ def faces_near(v, f, p, r):
     return np.flatnonzero(np.linalg.norm(c - p, axis=1) < r)
 
 
-def test_line_path_runs_straight_to_the_nearest_attachment():
-    v, f = grid()
-    c = v[f].mean(1)
-    attached = c[:, 0] < 0.01  # the left edge is the attachment ring
-    end = faces_near(v, f, np.array([0.15, 0.1, 0.0]), 0.008)
-    far_end = faces_near(v, f, np.array([0.19, 0.1, 0.0]), 0.008)
-    path = line_paths(v, f, [(end, far_end)], attached)
-    on = c[path]
-    # the path from the nearer end goes left along y = 0.1 to the attachment at x = 0
-    assert on[:, 0].min() < 0.01
-    assert np.all(np.abs(on[:, 1] - 0.1) < 0.03)
-    assert path[end].all() and path[far_end].all()
-
-
-def test_line_and_random_designs_spend_the_budget():
+def test_manual_strip_runs_straight_to_the_nearest_attachment():
     v, f = grid()
     areas = triangle_areas(v, f)
     c = v[f].mean(1)
-    attached = c[:, 0] < 0.01
+    held = c[:, 0] < 0.01  # the left edge is an attachment ring
+    end = faces_near(v, f, np.array([0.15, 0.1, 0.0]), 0.008)
+    far_end = faces_near(v, f, np.array([0.19, 0.1, 0.0]), 0.008)
+    d = manual_design(v, f, [(end, far_end)], [], held, budget=0.06) > 0.5
+    on = c[d]
+    # the strip from the nearer end goes left along y = 0.1 to the attachment at x = 0
+    assert on[:, 0].min() < 0.01 and np.all(np.abs(on[:, 1] - 0.1) < 0.03)
+    assert d[end].all()
+    assert abs(areas[d].sum() / areas.sum() - 0.06) <= areas.max() / areas.sum()
+
+
+def test_manual_strips_reach_a_free_ring_never_their_own_clutch():
+    """A clutch across the middle of a sheet whose top edge is a free opening (a cuff): both
+    ends run to the ring, which is drawn all along; neither end's strip ends on the other's."""
+    v, f = grid()
+    c = v[f].mean(1)
+    ring = np.flatnonzero(c[:, 1] > 0.19)
+    a = faces_near(v, f, np.array([0.08, 0.12, 0.0]), 0.008)
+    b = faces_near(v, f, np.array([0.12, 0.12, 0.0]), 0.008)
+    d = manual_design(v, f, [(a, b)], [ring], np.zeros(len(f), bool), budget=0.1) > 0.5
+    assert d[ring].all() and d[a].all() and d[b].all()
+    # below the ring: two strips, one from each end, not one joining the ends
+    from kgarment.design.metrics import islands
+
+    below = d & (c[:, 1] < 0.19)
+    assert islands(f, below) == 2
+
+
+def test_manual_and_random_designs_spend_the_budget():
+    v, f = grid()
+    areas = triangle_areas(v, f)
+    c = v[f].mean(1)
+    held = c[:, 0] < 0.01
     ends = [(faces_near(v, f, np.array([0.1, 0.1, 0]), 0.008), faces_near(v, f, np.array([0.15, 0.15, 0]), 0.008))]
     one = areas.max() / areas.sum()
     for budget in (0.1, 0.25):
-        d = line_design(v, f, ends, attached, budget)
+        d = manual_design(v, f, ends, [], held, budget)
         assert abs(areas[d > 0.5].sum() / areas.sum() - budget) <= one
         r = random_design(v, f, budget, seed=3)
         assert abs(areas[r > 0.5].sum() / areas.sum() - budget) <= one
@@ -90,16 +108,16 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
     rc, out, err = _cli(["reproduce", "--resolution", "tiny", "--experiments", exps, "--out", "rep"], tmp_path)
     assert rc == 0, err
     rep = tmp_path / "rep"
-    doc = json.loads((rep / "results.json").read_text())
+    doc = json.loads((rep / "data.json").read_text())
     assert list(doc["experiments"]) == exps.split(",")
     for e in doc["experiments"].values():
         ev = e["evaluations"]
-        assert set(ev) == {"ours", "ours_last", "compliance", "line", "full", "random"}
+        assert set(ev) == {"ours", "ours_last", "compliance", "manual", "full", "random"}
         assert len(ev["random"]) == 2
         for m in e["motions"]:  # rho of the fully reinforced garment is 1 by definition
             assert ev["full"]["rho"][m]["on"] == pytest.approx(1.0, rel=1e-12)
             assert ev["full"]["rho"][m]["off"] == pytest.approx(1.0, rel=1e-12)
-        for kind in ("line", "random"):
+        for kind in ("manual", "random"):
             for r in ev[kind] if kind == "random" else [ev[kind]]:
                 assert abs(r["area"] - e["budget"]) < 0.01
     cross = doc["cross"]["sleeve"]
@@ -108,8 +126,18 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
     # the multi-motion design's column is its own evaluation
     assert cross["rho_on"]["arm_extension.right"]["all"] == pytest.approx(
         doc["experiments"]["sleeve_two_motions"]["evaluations"]["ours"]["rho"]["arm_extension.right"]["on"])
+    # the machine-readable summary: per experiment ours and manual, and the targets
+    summary = json.loads((rep / "results.json").read_text())
+    assert summary["resolution"] == "tiny" and set(summary["experiments"]) == set(exps.split(","))
+    flex = summary["experiments"]["arm_flexion"]["ours"]
+    assert set(flex) == {"rho", "parts", "clutch_ends_supported", "clutch_ends", "clutches"}
+    assert set(flex["clutches"]["elbow_outer.R"]) == {"share", "tension_N"}
+    assert {"every_clutch_loaded", "clutch_ends_supported", "one_part", "single_on_off",
+            "beats_manual"} <= set(summary["targets"])
+    assert all(isinstance(v, bool) for v in summary["targets"].values())
     md = (rep / "report.md").read_text()
     page = (rep / "report.html").read_text()
+    assert "Clutch loads" in md and "`every_clutch_loaded`" in md
     for heading in ("Targets", "Single-motion designs", "Multi-motion designs", "Cross-evaluation",
                     "Emergent properties", "Performance", "Compared with the paper"):
         assert f"## {heading}" in md and heading in page

@@ -49,6 +49,7 @@ def target_reached(area: float, target: float, er: float) -> bool:
 # ----- judging a design as a garment (method.md section 9) -----------------------------------
 LOADED_SHARE = 0.10    # a clutch is "loaded" in a motion when switching it on alone gives at least
                        # this share of the energy that switching all clutches on adds
+MIN_GAIN = 0.01        # below this share of the OFF energy, switching the clutches on changes nothing
 LOAD_TOL = 1e-3        # solver tolerance of the one-clutch-ON states behind the shares
 UNCONTROLLABLE = 0.05  # a motion whose fully reinforced garment stores ON and OFF energies within
                        # this relative difference cannot be controlled by the clutches

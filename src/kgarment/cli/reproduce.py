@@ -21,8 +21,10 @@ def cmd_reproduce(args) -> int:
     if out.exists() and not out.is_dir():
         raise KgarmentError(f"--out {out} is a file, not a folder")
     if args.report_only:
-        if not (out / "results.json").is_file():
-            raise KgarmentError(f"{out} has no results.json; run kgarment reproduce --out {out} first")
+        from kgarment.reproduce.catalog import DATA
+
+        if not (out / DATA).is_file():
+            raise KgarmentError(f"{out} has no data.json; run kgarment reproduce --out {out} first")
         md, page = write_report(out)
         print(f"report: {page} (Markdown: {md})")
         return 0
@@ -61,6 +63,6 @@ def add_parsers(sub) -> None:
                          "default: the example files as they are (subdivision 1)")
     sp.add_argument("--out", default="runs/reproduce", help="output folder (default runs/reproduce)")
     sp.add_argument("--experiments", help="comma-separated subset of experiments (default: all)")
-    sp.add_argument("--report-only", action="store_true", help="rewrite the report from OUT/results.json")
+    sp.add_argument("--report-only", action="store_true", help="rewrite the report from OUT/data.json")
     add_device(sp)
     sp.set_defaults(func=cmd_reproduce)

@@ -11,6 +11,11 @@ Per motion and clutch k (method.md section 9):
   ON (:func:`kgarment.sim.clutch_tensions`, what a load cell in its place measures);
 * ``loaded``: share >= :data:`kgarment.constants.LOADED_SHARE`.
 
+Where switching all clutches on changes the garment's energy by less than
+:data:`kgarment.constants.MIN_GAIN` of its OFF energy, no clutch does anything in that
+motion: shares are NaN ("n/a") and no clutch is loaded (ratios of two tiny differences
+would be noise).
+
 Garment energy is the total energy of an equilibrium (J): what the wearer works against
 when moving from the rest pose into the target pose.  The all-ON and all-OFF equilibria
 come from the one design evaluator (:meth:`kgarment.design.Evaluator.solve_design`: its
@@ -30,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kgarment.constants import LOAD_TOL, LOADED_SHARE
+from kgarment.constants import LOAD_TOL, LOADED_SHARE, MIN_GAIN
 from kgarment.sim import StateResult, clutch_tensions, solve_states
 
 
@@ -140,11 +145,12 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
         e_on, e_off = on.total_energy, off.total_energy
         garment.append(MotionEnergy(m, e_on, e_off))
         tension = clutch_tensions(model, design, states[(m, "on")], on.x, setup.solver)
+        gain = e_on - e_off
         for k, name in enumerate(names):
-            gain = e_on - e_off
-            share = (known[(m, f"only {name}")].total_energy - e_off) / gain if gain > 1e-12 * max(e_on, 1e-300) \
+            share = (known[(m, f"only {name}")].total_energy - e_off) / gain if gain > MIN_GAIN * abs(e_off) \
                 else float("nan")
-            loads.append(ClutchLoad(m, name, float(share), float(tension[k]), bool(share >= LOADED_SHARE)))
+            loads.append(ClutchLoad(m, name, float(share), float(tension[k]),
+                                    bool(math.isfinite(share) and share >= LOADED_SHARE)))
     return LoadReport(tuple(loads), tuple(garment))
 
 

@@ -1,10 +1,20 @@
 """Baseline designs at a given area budget, to compare the optimised designs against.
 
-* :func:`line_design`: the manual-style design common in the literature: strips of
-  reinforcement from each clutch end to the nearest attachment ring or to another clutch,
-  along the shortest path over the garment (Dijkstra on the face adjacency graph, edge
-  weights = distances between face centroids), widened evenly (faces in order of their
-  surface distance to the strips) until the budget is spent.
+* :func:`manual_design`: what a designer draws (the paper's participants did): a strip of
+  reinforcement from each clutch end to where the body pulls the garment -- an attachment
+  ring or a band around a limb opening (the short-sleeve shirt's cuffs), or a strip already
+  so anchored (another clutch's, when less than half as far) -- along the shortest path over the garment (Dijkstra on
+  the face adjacency graph, edge weights = distances between face centroids), the band a
+  strip reaches drawn all around the limb, then everything widened evenly (faces in order
+  of their surface distance to the strips) until the budget is spent.  On the sleeves it is
+  the forearm line of the paper (clutch ends to the cuff rings).  (It replaces a "line"
+  baseline whose strips went to the nearest attachment *or clutch end*: on the shirt the
+  clutch ends are nearest to one another, so its strips joined the clutches in a ring held
+  by nothing the body moves, and it stored almost nothing: rho ON 0.00.)
+* :func:`line_paths` / :func:`line_design`: strips from each clutch end to the nearest
+  attachment face or another clutch's end (the previous baseline; on the shirt the clutch
+  ends are nearest to one another, so its strips link the clutches in a ring joined to
+  nothing the body moves, and it stores almost nothing).
 * :func:`random_design`: a random smooth pattern: Gaussian white noise per face, smoothed
   by ``passes`` applications of the one-ring filter, thresholded so that the reinforced
   area equals the budget; seeded, so reproducible.
@@ -45,44 +55,66 @@ def dual_graph(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix((np.maximum(w, 1e-12), (adj.row, adj.col)), shape=adj.shape)
 
 
-def line_paths(vertices: np.ndarray, faces: np.ndarray, end_faces, attached: np.ndarray) -> np.ndarray:
-    """(m,) bool faces on the shortest paths from each clutch end to the nearest target.
+STRIP_PREFERENCE = 0.5  # join another clutch's strip when it is nearer than this share of the nearest ring
 
-    end_faces : per clutch, (faces under end A, faces under end B) index arrays;
-    attached : (m,) bool attachment-ring faces.  Targets of an end: attachment faces and
-    the ends of the *other* clutches (an end is never linked to its own clutch).
-    """
+
+def manual_design(vertices: np.ndarray, faces: np.ndarray, end_faces, rings, held: np.ndarray, budget: float,
+                  x_min: float = X_MIN) -> np.ndarray:
+    """The manual baseline (module doc): (m,) in {x_min, 1}.
+
+    end_faces : per clutch, (faces under end A, faces under end B);  rings : per free limb
+    opening, the (b,) faces along it (drawn all around the limb when a strip reaches it);
+    held : (m,) bool faces the body holds already (attachment rings: reaching one is enough).
+    The strips come first in the budget, then the rings they reach, then the widening."""
     graph = dual_graph(vertices, faces)
-    on_path = np.zeros(len(faces), bool)
-    for k, ends in enumerate(end_faces):
-        others = [np.asarray(f) for j, e in enumerate(end_faces) if j != k for f in e]
-        targets = np.zeros(len(faces), bool)
-        targets |= np.asarray(attached, bool)
-        for f in others:
-            targets[f] = True
-        for src in ends:
-            src = np.unique(np.asarray(src))
-            on_path[src] = True
-            if not targets.any():
-                continue
-            dist, pred, origin = dijkstra(graph, indices=src, min_only=True, return_predecessors=True)
-            cand = np.flatnonzero(targets & np.isfinite(dist))
-            if len(cand) == 0:
-                continue
-            f = int(cand[np.argmin(dist[cand])])
-            while f >= 0:
-                on_path[f] = True
-                f = int(pred[f])
-    return on_path
+    rings = [np.unique(np.asarray(r, dtype=int)) for r in rings if len(r)]
+    ring_of = np.full(len(faces), -1)
+    for k, r in enumerate(rings):
+        ring_of[r] = k
+    anchored = (ring_of >= 0) | np.asarray(held, bool)
+    strip = np.zeros(len(faces), bool)
+    band = np.zeros(len(faces), bool)
+    owner = np.full(len(faces), -1)  # the clutch whose strip drew a face
+    starts = [(k, np.unique(np.asarray(e, dtype=int))) for k, pair in enumerate(end_faces) for e in pair]
+    dist0 = [dijkstra(graph, indices=s, min_only=True)[anchored].min() if anchored.any() else np.inf
+             for _, s in starts]
+    for i in np.argsort(dist0, kind="stable"):
+        k, start = starts[i]
+        dist, pred, _ = dijkstra(graph, indices=start, min_only=True, return_predecessors=True)
+        to_anchor = np.flatnonzero((anchored | band) & np.isfinite(dist))
+        to_strip = np.flatnonzero(strip & (owner != k) & np.isfinite(dist))  # never its own strips
+        if not len(to_anchor) and not len(to_strip):
+            continue
+        a = to_anchor[np.argmin(dist[to_anchor])] if len(to_anchor) else None
+        b = to_strip[np.argmin(dist[to_strip])] if len(to_strip) else None
+        # another clutch's (anchored) strip only when much nearer than the limb or the ring
+        f = int(b if a is None or (b is not None and dist[b] < STRIP_PREFERENCE * dist[a]) else a)
+        if ring_of[f] >= 0:
+            band[rings[ring_of[f]]] = True  # the strip's ring goes all around the limb
+        path = [int(x) for x in start]  # the whole end, then the way to the target
+        while f >= 0:
+            path.append(f)
+            f = int(pred[f])
+        fresh = np.array([x for x in path if not strip[x]], dtype=int)
+        strip[fresh], owner[fresh] = True, k
+    if not strip.any():
+        return np.full(len(faces), x_min)
+    drawn = strip | band
+    dist = dijkstra(graph, indices=np.flatnonzero(drawn), min_only=True)
+    key = np.where(strip, 0.0, np.where(band, 1.0, 2.0 + np.where(np.isfinite(dist), dist, np.inf)))
+    return _take_budget(key, triangle_areas(vertices, faces), budget, x_min)
 
 
-def line_design(vertices: np.ndarray, faces: np.ndarray, end_faces, attached: np.ndarray, budget: float,
-                x_min: float = X_MIN) -> np.ndarray:
-    """The manual-style line design (module doc): (m,) in {x_min, 1}."""
-    path = line_paths(vertices, faces, end_faces, attached)
-    graph = dual_graph(vertices, faces)
-    dist = dijkstra(graph, indices=np.flatnonzero(path), min_only=True)
-    return _take_budget(np.where(np.isfinite(dist), dist, np.inf), triangle_areas(vertices, faces), budget, x_min)
+def anchor_rings(garment) -> tuple[list[np.ndarray], np.ndarray]:
+    """Where the body pulls ``garment``: per free named opening (the short sleeves' cuffs;
+    not the neck, an unnamed ``opening``), the (b,) faces along it; and (m,) bool its
+    attached faces (attachment rings)."""
+    rings = []
+    for name, loop in garment.loops.items():
+        along = np.flatnonzero(np.isin(garment.faces, loop).any(axis=1))
+        if not name.startswith("opening") and not garment.attached[along].any():
+            rings.append(along)
+    return rings, np.asarray(garment.attached, bool)
 
 
 def random_design(vertices: np.ndarray, faces: np.ndarray, budget: float, seed: int, passes: int = 8,

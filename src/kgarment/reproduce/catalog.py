@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 from kgarment.errors import KgarmentError
 
+DATA = "data.json"  # in a reproduction folder: everything the report shows (results.json: its summary)
+
 
 @dataclass(frozen=True)
 class Resolution:

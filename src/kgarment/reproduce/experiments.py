@@ -31,6 +31,7 @@ from kgarment.design import design_values, finish, load_design_history, open_run
 from kgarment.problem import Problem, example_path, load_problem
 from kgarment.reproduce.catalog import (
     BY_NAME,
+    DATA,
     EXPERIMENTS,
     MULTI_OF_GROUP,
     PAPER_SHIRT_MATRIX,
@@ -40,7 +41,7 @@ from kgarment.reproduce.catalog import (
     select,
 )
 
-__all__ = ["BY_NAME", "EXPERIMENTS", "MULTI_OF_GROUP", "PAPER_SHIRT_MATRIX", "RESOLUTIONS", "Experiment",
+__all__ = ["BY_NAME", "DATA", "EXPERIMENTS", "MULTI_OF_GROUP", "PAPER_SHIRT_MATRIX", "RESOLUTIONS", "Experiment",
            "Resolution", "RunOutcome", "best_iteration", "design_run", "experiment_problem", "select"]
 log = logging.getLogger(__name__)
 

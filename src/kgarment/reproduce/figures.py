@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-KINDS = (("ours", "#1f3b73"), ("line", "#d98c1f"), ("compliance", "#7a9e3a"), ("random", "#999999"))
+KINDS = (("ours", "#1f3b73"), ("manual", "#d98c1f"), ("compliance", "#7a9e3a"), ("random", "#999999"))
 
 
 def _plt():
@@ -51,7 +51,7 @@ def rho_bars(path: Path, doc: dict) -> str:
 
 
 def emergent_figure(path: Path, doc: dict, out: Path) -> str | None:
-    """Our design beside the compliance and line baselines (the paper's last figure) for
+    """Our design beside the compliance and manual baselines (the paper's last figure) for
     the three-motion shirt, or the first multi-motion experiment there is."""
     exps = doc["experiments"]
     pick = exps.get("shirt_three_motions") or next((e for e in exps.values() if e["multi"]), None)
@@ -59,7 +59,7 @@ def emergent_figure(path: Path, doc: dict, out: Path) -> str | None:
     if pick is None:
         return None
     plt = _plt()
-    kinds = [k for k in ("ours", "compliance", "line") if k in pick["images"]]
+    kinds = [k for k in ("ours", "compliance", "manual") if k in pick["images"]]
     img0 = plt.imread(out / pick["images"][kinds[0]])
     aspect = img0.shape[0] / img0.shape[1]
     fig, axes = plt.subplots(len(kinds), 1, figsize=(9, (9 * aspect + 0.5) * len(kinds)), dpi=90)

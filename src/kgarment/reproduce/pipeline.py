@@ -1,11 +1,12 @@
 """``kgarment reproduce``: every design experiment, the baselines, and the numbers behind the report.
 
 For each experiment: our design (the ``active`` objective), the compliance baseline
-(a second design run, ON states only), the line, fully reinforced and random baselines at
+(a second design run, ON states only), the manual, fully reinforced and random baselines at
 the same budget, all evaluated by one :class:`~kgarment.reproduce.evaluate.Evaluator`
 with clutches ON and OFF.  For the sleeve and the three-motion shirt, every design of the
 group is also evaluated on the multi-motion problem (the paper's Table 1).  Everything
-lands in ``OUT/results.json``; runs and evaluations are reused when ``reproduce`` runs
+lands in ``OUT/data.json`` (its summary in ``OUT/results.json``, :func:`summary`); runs and
+evaluations are reused when ``reproduce`` runs
 again, so an interrupted run continues.
 """
 
@@ -21,11 +22,13 @@ from pathlib import Path
 import numpy as np
 
 from kgarment.design import design_values
+from kgarment.io import atomic_write_text
 from kgarment.render import render_design
-from kgarment.reproduce.baselines import line_design, random_design
+from kgarment.reproduce.baselines import anchor_rings, manual_design, random_design
 from kgarment.reproduce.evaluate import CachedEvaluator, EvaluationCache
 from kgarment.reproduce.experiments import (
     BY_NAME,
+    DATA,
     MULTI_OF_GROUP,
     RESOLUTIONS,
     Experiment,
@@ -33,6 +36,7 @@ from kgarment.reproduce.experiments import (
     experiment_problem,
     select,
 )
+from kgarment.reproduce.targets import target_flags
 
 log = logging.getLogger(__name__)
 
@@ -74,7 +78,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         "ours": ours.design,
         "ours_last": ours.last,
         "compliance": comp.design,
-        "line": line_design(g.rest_vertices, g.faces, ev.setup.end_faces, g.attached, budget),
+        "manual": manual_design(g.rest_vertices, g.faces, ev.setup.end_faces, *anchor_rings(g), budget),
         "full": np.ones(g.n_faces),
     }
     entry = {"name": exp.name, "title": exp.title, "group": exp.group, "multi": exp.multi,
@@ -87,7 +91,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         entry["evaluations"][kind] = ev.evaluate(d, kind, loads=True)
     entry["evaluations"]["random"] = [ev.evaluate(random_design(g.rest_vertices, g.faces, budget, seed), f"random {seed}")
                                       for seed in range(res.seeds)]
-    for kind in ("ours", "compliance", "line"):
+    for kind in ("ours", "compliance", "manual"):
         entry["images"][kind] = "img/" + _render_design(img / f"{exp.name}_{kind}.png", ev, designs[kind],
                                                         f"{exp.name}: {kind}")
     prog = ours.run / "progress.png"
@@ -124,7 +128,7 @@ def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationC
 def reproduce(out: Path, resolution: str = "preview", experiments: str | None = None, device: str = "cpu",
               progress: Callable | None = None) -> dict:
     """Run the selected experiments at ``resolution`` into ``out``; returns (and writes
-    ``out/results.json``) everything the report shows."""
+    ``out/data.json``, summarised in ``out/results.json``) everything the report shows."""
     res = RESOLUTIONS[resolution]
     exps = select(experiments)
     out = Path(out)
@@ -144,5 +148,26 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # this process; workers are alike
     doc = {"resolution": res.__dict__, "experiments": results, "cross": cross,
            "wall_seconds": time.time() - t0, "peak_rss_mb": peak, "device": device}
-    (out / "results.json").write_text(json.dumps(doc, indent=1))
+    atomic_write_text(out / DATA, json.dumps(doc, indent=1))
+    atomic_write_text(out / "results.json", json.dumps(summary(doc), indent=1))
     return doc
+
+
+def _design_summary(ev: dict) -> dict:
+    """One design's entry of results.json (the issue's schema)."""
+    clutches: dict = {}
+    for c in ev.get("clutches", []):
+        entry = clutches.setdefault(c["clutch"], {"share": {}, "tension_N": {}})
+        entry["share"][c["motion"]] = c["share"]
+        entry["tension_N"][c["motion"]] = c["tension_N"]
+    return {"rho": ev["rho"], "parts": ev["islands_with_clutches"], "clutch_ends_supported": ev["clutch_ends_supported"],
+            "clutch_ends": ev["clutch_ends"], "clutches": clutches}
+
+
+def summary(doc: dict) -> dict:
+    """The machine-readable results (``results.json``): per experiment our design and the
+    manual baseline (rho per motion ON/OFF, parts counting clutch links, clutch ends on
+    reinforcement, per clutch share and tension per motion), and the targets met."""
+    exps = {name: {kind: _design_summary(e["evaluations"][kind]) for kind in ("ours", "manual")
+                   if kind in e["evaluations"]} for name, e in doc["experiments"].items()}
+    return {"resolution": doc["resolution"]["name"], "experiments": exps, "targets": target_flags(doc)}

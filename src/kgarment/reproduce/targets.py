@@ -1,0 +1,113 @@
+"""The reproduction's targets (issue #19), computed from the report's data: each a flag and
+a sentence with the numbers behind it.
+
+``every_clutch_loaded``  in every design of ours, every clutch has share >= 0.10 in at least
+                         one of its motions
+``clutch_ends_supported`` every clutch end on reinforcement, in every design of ours
+``one_part``             one part, counting clutches as links, in every design of ours
+``single_on_off``        every single-motion design rho ON > 1 and rho OFF < 1
+``multi_keeps_60``       the three-motion shirt keeps >= 60% of each single-motion rho ON
+``diagonal``             the cross-evaluation's largest value of each row on the diagonal
+``beats_manual``         ours >= 1.5x the manual baseline's rho ON and clutch tension (the
+                         largest in the motion) on every motion
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from kgarment.constants import LOADED_SHARE
+
+NEGLIGIBLE_RHO = 0.01  # a baseline below this rho ON stores (almost) nothing: no ratio is printed
+
+
+@dataclass(frozen=True)
+class Target:
+    """name; ok : met; detail : the numbers."""
+
+    name: str
+    ok: bool
+    detail: str
+
+
+def _on(e: dict, kind: str, m: str) -> float:
+    return e["evaluations"][kind]["rho"][m]["on"]
+
+
+def max_tension(ev: dict, motion: str) -> float:
+    """The largest clutch tension (N) of a design's evaluation in ``motion`` (0 without loads)."""
+    return max((c["tension_N"] for c in ev.get("clutches", []) if c["motion"] == motion), default=0.0)
+
+
+def ratio_text(ours: float, base: float, what: str) -> str:
+    """``ours / base`` as text, or a sentence when the baseline holds (almost) nothing."""
+    if base < NEGLIGIBLE_RHO * max(abs(ours), 1.0) and what == "rho":
+        return f"the {what} of the baseline is {base:.3g}: it stores almost nothing"
+    return f"{ours / max(base, 1e-12):.2f}x"
+
+
+def evaluate_targets(doc: dict) -> list[Target]:
+    """Every target that the data can decide (the cross-evaluation and the shirt's share
+    need their experiments)."""
+    exps = doc["experiments"]
+    out = []
+    idle, ends, parts = [], [], []
+    for e in exps.values():
+        o = e["evaluations"]["ours"]
+        names = list(dict.fromkeys(c["clutch"] for c in o.get("clutches", [])))
+        for n in names:
+            if not any(c["clutch"] == n and c["loaded"] for c in o["clutches"]):
+                best = max((c["share"] for c in o["clutches"] if c["clutch"] == n and c["share"] == c["share"]),
+                           default=float("nan"))
+                idle.append(f"{e['name']}/{n} (largest share {best:.2f})")
+        if o["clutch_ends_supported"] < o["clutch_ends"]:
+            ends.append(f"{e['name']} ({o['clutch_ends_supported']}/{o['clutch_ends']})")
+        if o["islands_with_clutches"] > 1:
+            parts.append(f"{e['name']} ({o['islands_with_clutches']} parts)")
+    out.append(Target("every_clutch_loaded", not idle, "every clutch of every design has share >= "
+                      f"{LOADED_SHARE:g} in one of its motions" + (f"; not: {', '.join(idle)}" if idle else "")))
+    out.append(Target("clutch_ends_supported", not ends, "every clutch end on reinforcement"
+                      + (f"; not: {', '.join(ends)}" if ends else "")))
+    out.append(Target("one_part", not parts, "one part counting clutches as links"
+                      + (f"; not: {', '.join(parts)}" if parts else "")))
+    singles = [e for e in exps.values() if not e["multi"]]
+    if singles:
+        bad = [f"{e['name']} ({_on(e, 'ours', m):.2f} / {e['evaluations']['ours']['rho'][m]['off']:.2f})"
+               for e in singles for m in e["motions"]
+               if not (_on(e, "ours", m) > 1 and e["evaluations"]["ours"]["rho"][m]["off"] < 1)]
+        out.append(Target("single_on_off", not bad, "every single-motion design has rho ON > 1 and OFF < 1"
+                          + (f"; not: {', '.join(bad)}" if bad else "")))
+    shirt = exps.get("shirt_three_motions")
+    if shirt:
+        shares = [(m, _on(shirt, "ours", m) / max(_on(exps[m], "ours", m), 1e-12)) for m in shirt["motions"]
+                  if m in exps]
+        if shares:
+            out.append(Target("multi_keeps_60", all(s >= 0.6 for _, s in shares),
+                              "the three-motion shirt keeps at least 60% of each single-motion rho ON ("
+                              + ", ".join(f"{m} {100 * s:.0f}%" for m, s in shares) + ")"))
+        cross = doc.get("cross", {}).get("shirt")
+        if cross:
+            rows = cross["rho_on"]
+            diag = [r for r in rows if r in rows[r] and rows[r][r] >= max(rows[r].values()) - 1e-12]
+            out.append(Target("diagonal", len(diag) == len(rows), "the cross-evaluation's largest value of each "
+                              f"row is on the diagonal ({len(diag)} of {len(rows)} rows)"))
+    worst = []
+    for e in exps.values():
+        ev = e["evaluations"]
+        if "manual" not in ev:
+            continue
+        for m in e["motions"]:
+            r_rho = _on(e, "ours", m) / max(_on(e, "manual", m), 1e-12)
+            r_t = max_tension(ev["ours"], m) / max(max_tension(ev["manual"], m), 1e-12)
+            worst.append((min(r_rho, r_t), r_rho, r_t, e["name"], m))
+    if worst:
+        w = min(worst)
+        out.append(Target("beats_manual", w[0] >= 1.5, "ours has at least 1.5x the manual baseline's rho ON and "
+                          f"clutch tension on every motion (smallest: {w[3]} / {w[4]}, rho {w[1]:.2f}x, "
+                          f"tension {w[2]:.2f}x)"))
+    return out
+
+
+def target_flags(doc: dict) -> dict[str, bool]:
+    """{target name: met} for results.json."""
+    return {t.name: bool(t.ok) for t in evaluate_targets(doc)}
