@@ -73,30 +73,30 @@ class SimResult:
                 "clutches": [dict(r) for r in self.loads]}
 
 
+def _side_by_side(key_head: list[str], heads: list[str], keys, results, cell) -> list[str]:
+    """Markdown table lines: one row per key (a tuple, one column per ``key_head``), one
+    column per result with ``cell(result, key)`` (None: empty)."""
+    lines = ["| " + " | ".join(key_head + heads) + " |", "|" + "---|" * len(key_head) + "---:|" * len(heads)]
+    for k in keys:
+        cells = ["" if (c := cell(e, k)) is None else c for e in results]
+        lines.append("| " + " | ".join([*k, *cells]) + " |")
+    return lines
+
+
 def results_table(a: SimResult | None, b: SimResult | None, stale_a: bool = False) -> str:
     """Markdown table of rho per motion and state for designs A and B side by side."""
     evs = [e for e in (a, b) if e is not None]
     if not evs:
         return "No simulation yet: pick motions and press **Simulate design A**."
     keys = list(dict.fromkeys((r["motion"], r["state"]) for e in evs for r in e.rows))
-    head = "| motion | state | " + " | ".join(f"rho {e.label}" for e in evs) + " |"
-    lines = [head, "|---|---|" + "---:|" * len(evs)]
-    for m, s in keys:
-        cells = []
-        for e in evs:
-            row = e.row(m, s)
-            cells.append("" if row is None else f"{row['rho']:.3f}" + ("" if row["converged"] else " (nc)"))
-        lines.append(f"| {m} | {s} | " + " | ".join(cells) + " |")
+    lines = _side_by_side(["motion", "state"], [f"rho {e.label}" for e in evs], keys, evs,
+                          lambda e, k: None if (r := e.row(*k)) is None else
+                          f"{r['rho']:.3f}" + ("" if r["converged"] else " (nc)"))
     pairs = list(dict.fromkeys((r["motion"], r["clutch"]) for e in evs for r in e.loads))
     if pairs:
-        lines += ["", "| motion | clutch | " + " | ".join(f"share {e.label} / N" for e in evs) + " |",
-                  "|---|---|" + "---:|" * len(evs)]
-        for m, c in pairs:
-            cells = []
-            for e in evs:
-                r = e.load(m, c)
-                cells.append("" if r is None else f"{r['share']:.2f} / {r['tension_N']:.0f}" + (" *" if r["loaded"] else ""))
-            lines.append(f"| {m} | {c} | " + " | ".join(cells) + " |")
+        lines += [""] + _side_by_side(["motion", "clutch"], [f"share {e.label} / N" for e in evs], pairs, evs,
+                                      lambda e, k: None if (r := e.load(*k)) is None else
+                                      f"{r['share']:.2f} / {r['tension_N']:.0f}" + (" *" if r["loaded"] else ""))
     notes = []
     if pairs:
         notes.append("share: of the ON - OFF energy with only that clutch ON; N: its tension with all ON; "
