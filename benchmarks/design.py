@@ -1,9 +1,10 @@
 """Benchmark: the whole three-motion shirt design at subdivision 0 and 1.
 
 Runs `kgarment design examples/shirt_three_motions.toml --subdivision S` in a child process
-per resolution and prints wall time, iterations, peak memory (RSS, the largest of the
-main and worker processes) and the final rho per
-motion and state. Targets on a 2-core machine: subdivision 0 in at most 5 minutes,
+per resolution and prints wall time (the final design's evaluation included), iterations,
+peak memory (RSS, the largest of the main and worker processes), the last iteration's rho
+per motion and state, and the final design's parts, clutch ends on reinforcement and
+clutch loads. Targets on a 2-core machine: subdivision 0 in at most 5 minutes,
 subdivision 1 in at most 30 minutes.
 
     python benchmarks/design.py [--subdivisions 0 1] [--max-iterations N] [--keep DIR]
@@ -54,7 +55,23 @@ def run(sub: int, out: Path, max_iterations: int | None) -> dict:
             "newton_iterations": sum(r["newton_iterations"] for r in rows),
             "unconverged_iterations": sum(1 for r in rows if r["unconverged_states"]),
             "rho": {k[4:-1]: v for k, v in last.items() if k.startswith("rho[")},
-            "solver_s": sum(r["seconds"] for r in rows)}
+            "solver_s": sum(r["seconds"] for r in rows), **final_evaluation(out)}
+
+
+def final_evaluation(out: Path) -> dict:
+    """The final design's evaluation (final/evaluation.json): parts counting clutch links,
+    clutch ends on reinforcement, clutches loaded in at least one motion, and the clutch
+    loads (share / tension per motion)."""
+    path = out / "final" / "evaluation.json"
+    if not path.is_file():
+        return {}
+    ev = json.loads(path.read_text())
+    names = list(dict.fromkeys(c["clutch"] for c in ev.get("clutches", [])))
+    loaded = [n for n in names if any(c["loaded"] for c in ev["clutches"] if c["clutch"] == n)]
+    return {"parts": ev["islands_with_clutches"], "clutch_ends_supported": ev["clutch_ends_supported"],
+            "clutch_ends": ev["clutch_ends"], "clutches_loaded": len(loaded), "clutches": len(names),
+            "loads": {f"{c['motion']}:{c['clutch']}": f"{c['share']:.2f} / {c['tension_N']:.0f} N"
+                      for c in ev.get("clutches", [])}}
 
 
 def main() -> None:
@@ -77,7 +94,13 @@ def main() -> None:
               f"unconverged state)")
         for k, v in res["rho"].items():
             print(f"    rho {k:22s} {v:.3f}")
-        figures[f"subdivision {sub}"] = {k: v for k, v in res.items() if k != "rho"}
+        if "parts" in res:
+            print(f"    final design: {res['parts']} part(s) counting clutch links, clutch ends on reinforcement "
+                  f"{res['clutch_ends_supported']}/{res['clutch_ends']}, clutches loaded {res['clutches_loaded']}/"
+                  f"{res['clutches']}")
+            for k, v in res["loads"].items():
+                print(f"    load {k:34s} {v}")
+        figures[f"subdivision {sub}"] = {k: v for k, v in res.items() if k not in ("rho", "loads")}
     print(f"run folders in {base}")
     if args.json:
         sys.path.insert(0, str(Path(__file__).parent))
