@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from kgarment.cli import main
+from kgarment.constants import target_reached
 from kgarment.design import Evaluator, finish, load_design, load_design_history, open_run
 from kgarment.errors import KgarmentError
 from kgarment.problem import load_problem
@@ -55,8 +56,13 @@ def test_the_run_does_not_depend_on_how_it_is_driven(runs):
     cli, lib, dr = runs
     np.testing.assert_array_equal(load_design_history(cli), load_design_history(lib))
     assert _rows(cli) == _rows(lib)
-    with np.load(cli / "final" / "design.npz") as z:
-        np.testing.assert_array_equal(z["design"] > 0.5, load_design_history(cli)[-1])
+    with np.load(cli / "final" / "design.npz") as z:  # the best iteration at the target area
+        k = int(z["iteration"])
+        np.testing.assert_array_equal(z["design"] > 0.5, load_design_history(cli)[k])
+    rows = _rows(cli)
+    p = dr.setup.params
+    at_target = [r for r in rows if target_reached(r["area"], p.target_area, p.er) and not r["unconverged_states"]]
+    assert rows[k] in at_target and rows[k]["objective"] == max(r["objective"] for r in at_target)
 
 
 def test_the_area_follows_the_schedule(runs):

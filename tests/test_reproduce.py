@@ -79,7 +79,7 @@ def test_manual_and_random_designs_spend_the_budget():
 
 
 def test_best_iteration_is_the_best_converged_one_at_the_target():
-    from kgarment.reproduce.experiments import best_iteration
+    from kgarment.design.run import best_iteration
 
     rows = [{"iteration": 0, "area": 1.0, "objective": 9.0, "unconverged_states": ""},
             {"iteration": 1, "area": 0.15, "objective": 2.0, "unconverged_states": ""},

@@ -5,6 +5,8 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import numpy as np
+
 from kgarment.cli.common import (
     add_device,
     add_overrides,
@@ -52,7 +54,10 @@ def print_summary(dr, seconds: float) -> None:
     row = st.metrics[-1]
     print(f"\n{len(st.metrics)} iterations in {seconds:.0f} s; last iteration {rho_line(row, list(dr.setup.motions))}")
     if dr.evaluation is not None:
-        print(f"final design (iteration {len(st.designs) - 1}), evaluated like kgarment evaluate {dr.run}:")
+        with np.load(dr.run / "final" / "design.npz") as z:
+            k = int(z["iteration"])
+        print(f"final design: iteration {k} (the best objective at the target area), evaluated like "
+              f"kgarment evaluate {dr.run}:")
         print_evaluation(dr.evaluation)
     print(f"results in {dr.run}/: metrics.csv, metrics.json, progress.png, designs.npz, final/")
     for path in dr.paths:

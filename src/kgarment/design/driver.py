@@ -29,7 +29,7 @@ from kgarment.design.evaluate import DesignEvaluation, Evaluator
 from kgarment.design.loads import load_chart
 from kgarment.design.loop import LoopState, initial_state, run_loop
 from kgarment.design.report import finish_run
-from kgarment.design.run import load_checkpoint, prepare_run_folder, save_checkpoint
+from kgarment.design.run import best_iteration, load_checkpoint, prepare_run_folder, save_checkpoint
 from kgarment.design.setup import DesignSetup, setup_from_problem
 from kgarment.errors import Cancelled, KgarmentError
 from kgarment.garment import Garment
@@ -137,8 +137,9 @@ def _with_attachments(garment: Garment, path: Path) -> Garment:
 def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
            cancelled: Callable[[], bool] | None = None, final: bool = True, evaluate: bool = True) -> DesignRun:
     """Iterate to the end (checkpoint after every iteration), then (``final``) write the
-    final design and its renders into ``dr.run / "final"`` and (``evaluate``) evaluate it
-    with the one design evaluator (:func:`evaluate_final`).
+    final design -- the best iteration at the target area (:func:`kgarment.design.run.best_iteration`)
+    -- and its renders into ``dr.run / "final"`` and (``evaluate``) evaluate it with the one
+    design evaluator (:func:`evaluate_final`).
 
     progress(state) after every iteration (its checkpoint is already written);
     cancelled() is checked after every iteration and raises :class:`Cancelled` (the run
@@ -154,23 +155,23 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
     dr = dataclasses.replace(dr, state=st)
     if not final:
         return dr
-    paths = finish_run(dr.run, dr.setup, st, dr.body, dr.garment, list(dr.strips))
-    evaluation = None
-    if evaluate:
-        evaluation, more = evaluate_final(dr)
-        paths += more
+    p = dr.setup.params
+    k = best_iteration(st.metrics, p.target_area, p.er)
+    evaluation, paths = evaluate_final(dr, k) if evaluate else (None, [])
+    equilibria = None if evaluation is None else {s.key: s.result for s in evaluation.states}
+    paths = finish_run(dr.run, dr.setup, st, dr.body, dr.garment, list(dr.strips), k, equilibria) + paths
     return dataclasses.replace(dr, paths=tuple(paths), evaluation=evaluation)
 
 
-def evaluate_final(dr: DesignRun) -> tuple[DesignEvaluation, list[Path]]:
-    """The final design evaluated like ``kgarment evaluate RUN`` (the one design evaluator,
-    per-clutch loads included): ``final/evaluation.json`` and ``final/clutch_loads.png``.
-    These, not the last metrics row (solved warm along the run's path, to the design
-    tolerance), are the run's final numbers."""
+def evaluate_final(dr: DesignRun, iteration: int) -> tuple[DesignEvaluation, list[Path]]:
+    """The final design (of ``iteration``) evaluated like ``kgarment evaluate RUN`` (the one
+    design evaluator, per-clutch loads included): ``final/evaluation.json`` and
+    ``final/clutch_loads.png``.  These, not the metrics rows (solved warm along the run's
+    path, to the design tolerance), are the run's final numbers."""
     ev = Evaluator(setup_from_problem(dr.problem, dr.body, dr.garment, dr.strips, "evaluate", dr.setup.solver.device))
-    design = design_values(dr.state.designs[-1])
+    design = design_values(dr.state.designs[iteration])
     res = ev.evaluate(design, loads=True)
-    doc = {"run": str(dr.run), "iteration": len(dr.state.designs) - 1, **res.to_json()}
+    doc = {"run": str(dr.run), "iteration": iteration, **res.to_json()}
     paths = [atomic_write_text(dr.run / "final" / "evaluation.json", json.dumps(doc, indent=1))]
     if res.loads is not None:
         paths.append(load_chart(res.loads, dr.run / "final" / "clutch_loads.png",

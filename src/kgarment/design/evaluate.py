@@ -129,7 +129,7 @@ class Equilibrium:
     other: StateResult | None = None
 
 
-def _pick(a: StateResult, b: StateResult) -> Equilibrium:
+def pick_equilibrium(a: StateResult, b: StateResult) -> Equilibrium:
     """The better of two solutions of one state (``a`` on ties) and whether they differ."""
     if a.converged != b.converged:
         return Equilibrium(a if a.converged else b)
@@ -213,12 +213,12 @@ class Evaluator:
         starts = [r.x for r in self.reference(keyed)] if starts is None else list(starts)
         cold = solve_states(setup.model, design, states, options=setup.solver)
         warm = solve_states(setup.model, design, states, warm_start=starts, options=setup.solver)
-        out = [_pick(a, b) for a, b in zip(cold, warm)]
+        out = [pick_equilibrium(a, b) for a, b in zip(cold, warm)]
         for i, e in enumerate(out):
             if not e.result.converged and any(a > 0 for a in states[i].activation):
                 r = activation_continuation(setup, design, states[i])
                 if r.converged or r.convergence.residual < e.result.convergence.residual:
-                    out[i] = _pick(r, e.result)
+                    out[i] = pick_equilibrium(r, e.result)
         return out
 
     def equilibria(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]],

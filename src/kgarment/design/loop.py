@@ -5,7 +5,8 @@ One iteration (:func:`iterate`) is four steps, each a function of the frozen
 
 1. :func:`solve`: every state (motion x activation) for the current design, warm started
    from the previous iteration's equilibria (the last converged one per state; see
-   ``WARM_MAX_RESIDUAL``) -> :class:`Solved` (equilibria, stored energies);
+   ``WARM_MAX_RESIDUAL``) and, with ``skin_start``, also from the skin-tight garment (the
+   lower-energy equilibrium kept) -> :class:`Solved` (equilibria, stored energies);
 2. :func:`sensitivities`: element energy densities -> sensitivities, combined by the
    objective, filtered, averaged with the previous iteration's;
 3. :func:`metrics_row`: the iteration's metrics (area, objective, rho per state, islands,
@@ -33,6 +34,7 @@ import numpy as np
 
 from kgarment.design.beso import converged, design_values, next_target, update_design
 from kgarment.design.connect import connect_design
+from kgarment.design.evaluate import pick_equilibrium
 from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
 from kgarment.design.objective import combine_sensitivities, objective_value
 from kgarment.design.setup import DesignSetup, StateKey
@@ -122,6 +124,9 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     opts = setup.options(st.iteration, st.target)
     results = solve_states(setup.model, st.design, states, warm_start=[st.warm.get(s.name) for s in states],
                            options=opts)
+    if setup.skin_start and st.warm:
+        cold = solve_states(setup.model, st.design, states, options=opts)
+        results = [pick_equilibrium(w, c).result for w, c in zip(results, cold)]
     factor = log_stiffness_derivative(st.design, setup.model.preset) / setup.model.preset.penal
     alpha, energy, stored = {}, {}, {}
     for (key, _), r in zip(keyed, results):

@@ -34,32 +34,39 @@ def write_design_mesh(path, vertices, faces, design) -> Path:
     return path
 
 
-def finish_run(run: Path, setup, st, body, garment, strips) -> list[Path]:
-    """Final design (NPZ, PLY, OBJ), progress plot, and renders of the final design
-    coloured by energy density for each motion and state. Returns the written paths."""
+def finish_run(run: Path, setup, st, body, garment, strips, iteration: int, equilibria=None) -> list[Path]:
+    """Final design (NPZ, PLY, OBJ: the design of ``iteration``), progress plot, and renders of
+    it coloured by energy density for each motion and state (one colour scale per motion,
+    ON and OFF alike). ``equilibria``: {(motion, state): StateResult} of the final design (the
+    evaluation's); without them the states are solved from the run's last equilibria.
+    Returns the written paths."""
     final = run / "final"
     final.mkdir(exist_ok=True)
-    design = design_values(st.designs[-1])
+    design = design_values(st.designs[iteration])
     paths = [progress_plot(run, st.metrics)]
     atomic_save_npz(final / "design.npz", design=design, faces=garment.faces, rest_vertices=garment.rest_vertices,
-                    iteration=np.array(len(st.designs) - 1))
+                    iteration=np.array(iteration))
     paths.append(final / "design.npz")
     paths.append(write_design_mesh(final / "design.ply", garment.rest_vertices, garment.faces, design))
     paths.append(render_design(final / "design.png", body.rest_vertices, body.faces, garment.rest_vertices,
                                garment.faces, design, clutches=[(c.vertices, c.faces) for c in strips],
-                               title=f"{garment.name}: final design"))
+                               title=f"{garment.name}: final design (iteration {iteration})"))
     keyed = setup.states()
-    states = [s for _, s in keyed]
-    results = solve_states(setup.model, design, states, warm_start=[st.warm.get(s.name) for s in states],
-                           options=setup.solver)
-    vmax = max(float(np.percentile(r.garment_density, 99)) for r in results)
-    for (key, s), r in zip(keyed, results):
+    if equilibria is None or any(k not in equilibria for k, _ in keyed):
+        states = [s for _, s in keyed]
+        solved = solve_states(setup.model, design, states, warm_start=[st.warm.get(s.name) for s in states],
+                              options=setup.solver)
+        equilibria = {k: r for (k, _), r in zip(keyed, solved)}
+    vmax = {}
+    for (motion, _), r in equilibria.items():
+        vmax[motion] = max(vmax.get(motion, 0.0), float(np.percentile(r.garment_density, 99)))
+    for key, s in keyed:
+        r = equilibria[key]
         gx, cx = setup.model.split(r.x)
-        act = s.activation
         paths.append(render_scene(final / f"energy_{key[0]}_{key[1]}.png", body.vertices(key[0]), body.faces, gx,
-                                  garment.faces, face_values=r.garment_density, vmin=0.0, vmax=vmax,
+                                  garment.faces, face_values=r.garment_density, vmin=0.0, vmax=vmax[key[0]],
                                   clutches=[(x, c.faces) for c, x in zip(setup.model.clutches, cx)],
-                                  clutch_activation=act, value_label="energy density (J/m^2)",
+                                  clutch_activation=s.activation, value_label="energy density (J/m^2)",
                                   title=f"{garment.name}: {key[0]}, clutches {key[1]}"))
     return paths
 

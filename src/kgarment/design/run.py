@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.constants import target_reached
 from kgarment.design.beso import design_values
 from kgarment.design.loop import LoopState
 from kgarment.design.metrics import Stored
@@ -32,8 +33,8 @@ from kgarment.io import atomic_save_npz, atomic_write_text
 
 @dataclass(frozen=True)
 class DesignSource:
-    """Where a design comes from: a run folder (its final design, or iteration
-    ``iteration``) or a design file (.npy, .npz with a ``design`` array, .txt)."""
+    """Where a design comes from: a run folder (its final design: ``final/design.npz``'s
+    iteration, the best at the target area; or iteration ``iteration``) or a design file (.npy, .npz with a ``design`` array, .txt)."""
 
     run: Path | None = None
     iteration: int | None = None
@@ -69,7 +70,7 @@ def load_design(source: DesignSource | str | os.PathLike, n_faces: int) -> np.nd
     src = source if isinstance(source, DesignSource) else parse_design_source(str(source))
     if src.run is not None:
         hist = load_design_history(src.run)
-        k = len(hist) - 1 if src.iteration is None else src.iteration
+        k = iteration_of(src)
         if not 0 <= k < len(hist):
             raise KgarmentError(f"{src.run} has iterations 0..{len(hist) - 1}; asked for {k}")
         if hist.shape[1] != n_faces:
@@ -94,10 +95,29 @@ def load_design(source: DesignSource | str | os.PathLike, n_faces: int) -> np.nd
     return d
 
 
+def best_iteration(rows, target: float, er: float) -> int:
+    """The iteration a run reports as its design: the highest objective among the iterations
+    at the target area whose states all converged; the last one if none.  BESO's objective
+    is not monotone once the target is reached (where a state has several equilibria the
+    design can flip between them), and the paper samples designs along a run likewise."""
+    ok = [r for r in rows if target_reached(r["area"], target, er) and not r["unconverged_states"]]
+    return int(max(ok, key=lambda r: r["objective"])["iteration"]) if ok else int(rows[-1]["iteration"])
+
+
+def final_iteration(run) -> int:
+    """The iteration of a run's final design (``final/design.npz``), else its last one."""
+    run = Path(run)
+    path = run / "final" / "design.npz"
+    if path.is_file():
+        with np.load(path) as z:
+            if "iteration" in z.files:
+                return int(z["iteration"])
+    return len(load_design_history(run)) - 1
+
+
 def iteration_of(source: DesignSource) -> int:
-    """The iteration a run source names (its last one when none is given)."""
-    n = len(load_design_history(source.run))
-    return n - 1 if source.iteration is None else source.iteration
+    """The iteration a run source names (its final design's when none is given)."""
+    return final_iteration(source.run) if source.iteration is None else source.iteration
 
 
 def run_status(run) -> str:

@@ -48,7 +48,8 @@ class DesignSetup:
     sensitivity filter;  adjacency : (m, m) CSR face adjacency;  ends : one ClutchEnds per
     clutch;  clutch_area : total rest area of the clutches, m^2 (0 for the passive objective);
     attached : (a,) attachment faces;  loop_faces : per boundary loop of the garment, the
-    faces touching it (both for :func:`kgarment.design.connect.connect_design`).
+    faces touching it (both for :func:`kgarment.design.connect.connect_design`);
+    skin_start : iterations also solve from the skin-tight start (``SolverSpec.skin_start``).
     """
 
     model: SimModel
@@ -65,11 +66,12 @@ class DesignSetup:
     clutch_area: float = 0.0
     attached: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64), repr=False)
     loop_faces: tuple[np.ndarray, ...] = field(default=(), repr=False)
+    skin_start: bool = False
 
     @classmethod
     def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
               solver: SolverOptions, evolution_solver: SolverOptions | None = None,
-              protected: np.ndarray | None = None) -> DesignSetup:
+              protected: np.ndarray | None = None, skin_start: bool = False) -> DesignSetup:
         """Precompute areas, filter, adjacency and clutch ends for ``model``."""
         X, F = model.garment_rest, model.garment_faces
         areas = triangle_areas(X, F)
@@ -88,7 +90,7 @@ class DesignSetup:
         loops = tuple(np.unique(on_vertex[loop].indices) for loop in boundary_loops(F))
         return cls(model, dict(motions), objective, params, solver, evolution_solver, protected, areas, filt,
                    face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0,
-                   attached.astype(np.int64), loops)
+                   attached.astype(np.int64), loops, skin_start)
 
     @property
     def n_clutches(self) -> int:
@@ -137,7 +139,8 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
         solver, evolution = solver_options(problem, "evaluate", device), None
     return DesignSetup.build(model, garment_motions(body, garment, problem.motions), d.objective, d.beso, solver,
                              evolution_solver=evolution,
-                             protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin))
+                             protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin),
+                             skin_start=problem.solver.skin_start)
 
 
 def protected_faces(garment: Garment, strips, attachments: bool, margin: float) -> np.ndarray | None:

@@ -136,6 +136,12 @@ class SolverSpec:
     be?"); ``benchmarks/design.py`` measures what it costs and buys.  Set it equal to
     ``tol`` to solve every iteration alike.
     max_iter : Newton iterations per state.
+    skin_start : every design iteration also solves each state from the skin-tight garment and
+    keeps the lower-energy equilibrium (the evaluator's rule, :mod:`kgarment.design.evaluate`),
+    so that the run optimises the state the evaluation reports; doubles the solves.  For
+    clutches that a frictionless limb lets slide off the stretched side (the arm-flexion
+    sleeve: along the warm-started path the clutch stays over the outer elbow at 40-300% more
+    energy than where the garment settles, turned ~20 degrees about the arm).
     workers : processes solving states in parallel; 0 = one per core, at most 8 (results do
     not depend on it).
     """
@@ -144,6 +150,7 @@ class SolverSpec:
     tol: float = C.DESIGN_TOL
     evolution_tol: float = C.EVOLUTION_TOL
     max_iter: int = C.MAX_NEWTON
+    skin_start: bool = False
     workers: int = 0
 
 

@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from kgarment.constants import target_reached
 from kgarment.design import design_values, finish, load_design_history, open_run, run_status
+from kgarment.design.run import best_iteration
 from kgarment.problem import Problem, example_path, load_problem
 from kgarment.reproduce.catalog import (
     BY_NAME,
@@ -74,15 +74,6 @@ class RunOutcome:
     last: np.ndarray
     metrics: list
     seconds: float
-
-
-def best_iteration(rows: list[dict], target: float, er: float) -> int:
-    """The iteration to report: the highest objective among the iterations at the target
-    area (within the loop's tolerance) whose states all converged; the last one if none.
-    BESO's objective is not monotone once the target is reached, and the paper samples
-    designs along a run likewise."""
-    ok = [r for r in rows if target_reached(r["area"], target, er) and not r["unconverged_states"]]
-    return int(max(ok, key=lambda r: r["objective"])["iteration"]) if ok else int(rows[-1]["iteration"])
 
 
 def design_run(problem: Problem, folder: Path, device: str = "cpu",

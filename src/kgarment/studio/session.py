@@ -32,6 +32,7 @@ import tomli_w
 from kgarment.body import Body
 from kgarment.clutch import save_clutches
 from kgarment.design import design_values, load_design_history
+from kgarment.design.run import final_iteration
 from kgarment.errors import KgarmentError
 from kgarment.garment import Garment
 from kgarment.io import atomic_save_npz, atomic_write_text
@@ -132,7 +133,7 @@ def _read_run(run: Path) -> Opened:
     design = None
     if (run / "designs.npz").is_file():
         hist = load_design_history(run)
-        design = hist[-1] if len(hist) else None
+        design = hist[final_iteration(run)] if len(hist) else None  # the run's final design
     attached = _load_mask(run / "attachments.npz", "attached") if (run / "attachments.npz").is_file() else None
     return Opened("run", problem, design, attached, run=run)
 
