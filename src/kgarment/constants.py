@@ -21,6 +21,8 @@ EVALUATION_TOL = 1e-4  # evaluations (evaluate, simulate, studio, reproduce, fab
 MAX_NEWTON = 200       # [solver] max_iter: Newton iterations per state
 MAX_WORKERS = 8        # [solver] workers = 0 means one process per core, at most this many
 
+PRESET_NAMES = ("paper", "reference")  # material presets (kgarment.sim.materials.PRESETS)
+
 # ----- BESO (method.md section 6; the paper's values) -----------------------------------------
 TARGET_AREA = 0.15     # A*, the reinforced share of the garment's area (0.20 for the sleeves)
 ER = 0.015             # evolution ratio: the target area shrinks by this share per iteration

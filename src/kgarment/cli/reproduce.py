@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from kgarment import constants as C
 from kgarment.cli.common import add_device
 from kgarment.errors import KgarmentError
 
@@ -29,7 +30,8 @@ def cmd_reproduce(args) -> int:
         print(f"report: {page} (Markdown: {md})")
         return 0
     res = RESOLUTIONS[args.resolution]
-    print(f"reproducing {len(exps)} experiment(s) at {res.name} resolution into {out} "
+    print(f"reproducing {len(exps)} experiment(s) at {res.name} resolution"
+          + (f" with the {args.preset} material preset" if args.preset else "") + f" into {out} "
           f"(finished runs and evaluations there are reused): {', '.join(e.name for e in exps)}")
     t0 = time.time()
     with Progress(TextColumn("[bold]{task.fields[run]:34s}"), TextColumn("it {task.completed:>3}"), BarColumn(),
@@ -43,7 +45,7 @@ def cmd_reproduce(args) -> int:
                        description=f"area {100 * row['area']:5.1f}%  objective {row['objective']:8.4f}  "
                                    f"{row['seconds']:5.1f} s/it")
 
-        doc = reproduce(out, res.name, args.experiments, args.device, progress)
+        doc = reproduce(out, res.name, args.experiments, args.device, progress, args.preset)
     md, page = write_report(out, doc)
     print(f"done in {(time.time() - t0) / 60:.1f} min; report: {page} (Markdown twin: {md}); runs in {out / 'runs'}")
     return 0
@@ -55,7 +57,7 @@ def add_parsers(sub) -> None:
     sp = sub.add_parser("reproduce", help="run every design experiment of the paper with baselines; "
                         "write an HTML + Markdown report")
     sp.description = ("Design every experiment of the paper (" + ", ".join(e.name for e in EXPERIMENTS) + "), "
-                      "the compliance, line, fully reinforced and random baselines at the same budget, the "
+                      "the compliance, manual, fully reinforced and random baselines at the same budget, the "
                       "cross-evaluation of the sleeve and shirt designs, and a report with tables and pictures. "
                       "Runs and evaluations are kept in OUT and reused: run it again to continue.")
     sp.add_argument("--resolution", default="preview", choices=tuple(RESOLUTIONS),
@@ -63,6 +65,8 @@ def add_parsers(sub) -> None:
                          "default: the example files as they are (subdivision 1)")
     sp.add_argument("--out", default="runs/reproduce", help="output folder (default runs/reproduce)")
     sp.add_argument("--experiments", help="comma-separated subset of experiments (default: all)")
+    sp.add_argument("--preset", choices=C.PRESET_NAMES, help="material preset of every experiment (default: the "
+                    "example files', paper); give each preset its own --out")
     sp.add_argument("--report-only", action="store_true", help="rewrite the report from OUT/data.json")
     add_device(sp)
     sp.set_defaults(func=cmd_reproduce)

@@ -16,7 +16,7 @@ DEFAULT_MOTIONS = ("arms_forward", "arms_raise", "bend_forward")
 DEFAULT_LAYOUT = {"short_sleeve_shirt": "shirt", "long_sleeve_shirt": "long_sleeve", "arm_sleeve": "sleeve"}
 OBJECTIVE_NAMES = ("active", "passive", "compliance")
 FILTERS = ("one_ring", "radius")
-PRESET_NAMES = ("paper", "reference")
+PRESET_NAMES = C.PRESET_NAMES
 METHODS = ("newton", "lbfgs")
 
 

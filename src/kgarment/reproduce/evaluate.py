@@ -3,8 +3,10 @@
 :class:`CachedEvaluator` builds an experiment's problem once (body, garment, clutches)
 and evaluates designs with the one design evaluator
 (:class:`kgarment.design.Evaluator`), always with the clutches ON and OFF whatever the
-problem's objective.  Results are cached in a JSON file keyed by the problem and a hash of
-the design, so an interrupted ``reproduce`` picks up where it stopped.
+problem's objective.  Results are cached in a JSON file keyed by the experiment, a hash of
+the built problem (its fields and its clutches as laid) and a hash of the design, so an
+interrupted ``reproduce`` picks up where it stopped and a changed problem is not served
+stale numbers.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import numpy as np
 
 from kgarment.design import Evaluator
 from kgarment.io import atomic_write_text
-from kgarment.problem import Problem, build_body, build_clutches, build_garment
+from kgarment.problem import Problem, build_body, build_clutches, build_garment, problem_to_dict
 
 log = logging.getLogger(__name__)
 
@@ -43,6 +45,15 @@ def design_key(design: np.ndarray) -> str:
     return hashlib.sha1(np.packbits(np.asarray(design) > 0.5).tobytes()).hexdigest()[:16]
 
 
+def problem_key(problem: Problem, strips) -> str:
+    """A short hash of a built problem: its fields and its clutch strips as laid."""
+    h = hashlib.sha1(json.dumps(problem_to_dict(problem), sort_keys=True, default=str).encode())
+    for s in strips:
+        h.update(f"{s.name}|{s.length:.9g}|{s.width:.9g}|{s.prestrain:.9g}".encode())
+        h.update(np.ascontiguousarray(s.bind_face).tobytes())
+    return h.hexdigest()[:12]
+
+
 class CachedEvaluator:
     """Evaluates designs on ``problem``'s motions with its clutches ON and OFF.
 
@@ -52,11 +63,11 @@ class CachedEvaluator:
     """
 
     def __init__(self, problem: Problem, name: str, cache: EvaluationCache | None = None, device: str = "cpu"):
-        self.name = name
         self.cache = cache
         self.body = build_body(problem)
         self.garment = build_garment(problem, self.body)
         self.strips = build_clutches(problem, self.body, self.garment)
+        self.name = f"{name}#{problem_key(problem, self.strips)}"
         self.evaluator = Evaluator.from_problem(problem, body=self.body, garment=self.garment, strips=self.strips,
                                                 device=device, objective="active")
         self.setup = self.evaluator.setup

@@ -28,7 +28,8 @@ import numpy as np
 
 from kgarment.design import design_values, finish, load_design_history, open_run, run_status
 from kgarment.design.run import best_iteration
-from kgarment.problem import Problem, example_path, load_problem
+from kgarment.errors import KgarmentError
+from kgarment.problem import Problem, example_path, load_problem, override
 from kgarment.reproduce.catalog import (
     BY_NAME,
     DATA,
@@ -46,9 +47,11 @@ __all__ = ["BY_NAME", "DATA", "EXPERIMENTS", "MULTI_OF_GROUP", "PAPER_SHIRT_MATR
 log = logging.getLogger(__name__)
 
 
-def experiment_problem(exp: Experiment, res: Resolution, objective: str = "active") -> Problem:
-    """The example problem of ``exp`` at resolution ``res`` (and with ``objective``)."""
-    p = load_problem(example_path(exp.name))
+def experiment_problem(exp: Experiment, res: Resolution, objective: str = "active",
+                       preset: str | None = None) -> Problem:
+    """The example problem of ``exp`` at resolution ``res`` (and with ``objective``, and the
+    material ``preset`` instead of the example's when given)."""
+    p = override(load_problem(example_path(exp.name)), preset=preset)
     g, d = p.garment, p.design
     if res.subdivision is not None:
         g = dataclasses.replace(g, subdivision=res.subdivision)
@@ -80,6 +83,8 @@ def design_run(problem: Problem, folder: Path, device: str = "cpu",
                progress: Callable[[str, dict], None] | None = None) -> RunOutcome:
     """Run (or resume, or reuse) the design of ``problem`` in ``folder``."""
     status = run_status(folder)
+    if status != "new":
+        _check_same_problem(problem, folder)
     if status != "finished":
         if status == "unfinished":
             log.info("resuming %s", folder)
@@ -94,3 +99,13 @@ def design_run(problem: Problem, folder: Path, device: str = "cpu",
     k = best_iteration(rows, beso.target_area, beso.er)
     return RunOutcome(folder, design_values(hist[k]), k, design_values(hist[-1]), rows,
                       float(sum(r["seconds"] for r in rows)))
+
+
+def _check_same_problem(problem: Problem, folder: Path) -> None:
+    """Refuse to reuse a run folder made for another problem (materials, resolution, BESO)."""
+    old = load_problem(folder / "problem.toml")
+    for what, a, b in (("materials", old.materials, problem.materials), ("design", old.design, problem.design),
+                       ("garment subdivision", old.garment.subdivision, problem.garment.subdivision)):
+        if a != b:
+            raise KgarmentError(f"{folder} was designed with other {what} ({a} instead of {b}); "
+                                "give the reproduction another --out")

@@ -63,13 +63,13 @@ def _run_summary(outcome) -> dict:
 
 
 def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, device: str,
-                   progress: Callable | None) -> dict:
+                   progress: Callable | None, preset: str | None = None) -> dict:
     """Designs, baselines and evaluations of one experiment -> its results entry."""
     img = out / "img"
     t0 = time.time()
-    problem = experiment_problem(exp, res)
+    problem = experiment_problem(exp, res, preset=preset)
     ours = design_run(problem, out / "runs" / exp.name, device, progress)
-    comp = design_run(experiment_problem(exp, res, "compliance"), out / "runs" / f"{exp.name}-compliance",
+    comp = design_run(experiment_problem(exp, res, "compliance", preset), out / "runs" / f"{exp.name}-compliance",
                       device, progress)
     ev = CachedEvaluator(problem, f"{exp.name}@{res.name}", cache, device)
     budget = problem.design.beso.target_area
@@ -82,6 +82,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         "full": np.ones(g.n_faces),
     }
     entry = {"name": exp.name, "title": exp.title, "group": exp.group, "multi": exp.multi,
+             "preset": problem.materials.preset,
              "paper": {m: list(v) for m, v in exp.paper.items()}, "budget": budget,
              "garment": g.name, "faces": int(g.n_faces), "clutches": len(ev.strips), "motions": ev.motions,
              "states": ev.n_states, "run": _run_summary(ours), "compliance_run": _run_summary(comp),
@@ -103,7 +104,8 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     return entry
 
 
-def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationCache, device: str) -> dict | None:
+def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationCache, device: str,
+                   preset: str | None = None) -> dict | None:
     """The group's designs evaluated on its multi-motion problem: rows = motions evaluated
     on, columns = the motion each design was optimised for, and "all" (the multi design)."""
     multi = MULTI_OF_GROUP.get(group)
@@ -112,7 +114,7 @@ def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationC
     singles = [e for e in results.values() if e["group"] == group and not e["multi"]]
     if not singles:
         return None
-    ev = CachedEvaluator(experiment_problem(BY_NAME[multi], res), f"{multi}@{res.name}", cache, device)
+    ev = CachedEvaluator(experiment_problem(BY_NAME[multi], res, preset=preset), f"{multi}@{res.name}", cache, device)
     columns = {}
     for e in singles:
         with np.load(out / "designs" / f"{e['name']}.npz") as z:
@@ -126,8 +128,9 @@ def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationC
 
 
 def reproduce(out: Path, resolution: str = "preview", experiments: str | None = None, device: str = "cpu",
-              progress: Callable | None = None) -> dict:
-    """Run the selected experiments at ``resolution`` into ``out``; returns (and writes
+              progress: Callable | None = None, preset: str | None = None) -> dict:
+    """Run the selected experiments at ``resolution`` (with the material ``preset``, default:
+    the example files', ``paper``) into ``out``; returns (and writes
     ``out/data.json``, summarised in ``out/results.json``) everything the report shows."""
     res = RESOLUTIONS[resolution]
     exps = select(experiments)
@@ -139,14 +142,15 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
     results: dict = {}
     for exp in exps:
         log.info("experiment %s (%s resolution)", exp.name, res.name)
-        results[exp.name] = run_experiment(exp, res, out, cache, device, progress)
+        results[exp.name] = run_experiment(exp, res, out, cache, device, progress, preset)
     cross = {}
     for group in ("sleeve", "shirt"):
-        m = cross_evaluate(group, results, res, out, cache, device)
+        m = cross_evaluate(group, results, res, out, cache, device, preset)
         if m is not None:
             cross[group] = m
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # this process; workers are alike
-    doc = {"resolution": res.__dict__, "experiments": results, "cross": cross,
+    presets = sorted({e["preset"] for e in results.values()})
+    doc = {"resolution": res.__dict__, "preset": ", ".join(presets), "experiments": results, "cross": cross,
            "wall_seconds": time.time() - t0, "peak_rss_mb": peak, "device": device}
     atomic_write_text(out / DATA, json.dumps(doc, indent=1))
     atomic_write_text(out / "results.json", json.dumps(summary(doc), indent=1))
@@ -170,4 +174,5 @@ def summary(doc: dict) -> dict:
     reinforcement, per clutch share and tension per motion), and the targets met."""
     exps = {name: {kind: _design_summary(e["evaluations"][kind]) for kind in ("ours", "manual")
                    if kind in e["evaluations"]} for name, e in doc["experiments"].items()}
-    return {"resolution": doc["resolution"]["name"], "experiments": exps, "targets": target_flags(doc)}
+    return {"resolution": doc["resolution"]["name"], "preset": doc.get("preset", "paper"), "experiments": exps,
+            "targets": target_flags(doc)}

@@ -76,7 +76,8 @@ def build_markdown(doc: dict, figures: dict) -> str:
     sub = res["subdivision"] if res["subdivision"] is not None else "of the example files"
     er = "" if res["er"] is None else f", BESO evolution ratio {res['er']}"
     md = ["# kgarment reproduces *Computational Design of Active Kinesthetic Garments* (UIST 2022)", "",
-          f"Resolution **{res['name']}** (garment subdivision {sub}{er}), {res['seeds']} random seeds. "
+          f"Resolution **{res['name']}** (garment subdivision {sub}{er}), material preset "
+          f"**{doc.get('preset', 'paper')}**, {res['seeds']} random seeds. "
           "rho is the relative energy density of method.md section 7: energy per reinforced area over that of "
           "the fully reinforced garment in the same state, clutch energy and area included; "
           "ON / OFF = clutches on / off. *ours* is the iteration with the highest objective among those at the "
