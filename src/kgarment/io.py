@@ -12,6 +12,7 @@ half-written checkpoint, metrics table or mesh behind.
 from __future__ import annotations
 
 import io
+import json
 import os
 import shutil
 import tempfile
@@ -69,13 +70,119 @@ def write_ply(path, vertices: np.ndarray, faces: np.ndarray, face_values: dict[s
     return atomic_write_bytes(path, trimesh.exchange.ply.export_ply(mesh, include_attributes=True))
 
 
-def prepare_output_folder(out, force: bool) -> Path:
-    """Create the output folder ``out``; an existing non-empty one is replaced only with
-    ``force`` (otherwise a KgarmentError names it)."""
-    out = Path(out)
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+MARKER = ".kgarment"  # in every folder kgarment creates: what wrote it (JSON)
+RUN_FILES = ("problem.toml", "problem.txt")  # a run folder written before the marker existed
+
+
+def mark_folder(path, kind: str) -> Path:
+    """Mark ``path`` as a folder kgarment created (``kind``: run, fabrication, ...)."""
+    from kgarment import __version__
+
+    return atomic_write_text(Path(path) / MARKER, json.dumps({"kind": kind, "kgarment": __version__}) + "\n")
+
+
+def owned(path) -> bool:
+    """Whether ``path`` is a folder kgarment created (its marker, or a run folder's inputs)."""
+    path = Path(path)
+    return path.is_dir() and ((path / MARKER).is_file() or all((path / f).is_file() for f in RUN_FILES))
+
+
+def _empty(path: Path) -> bool:
+    return path.is_dir() and not any(path.iterdir())
+
+
+def check_replaceable(path, force: bool, flag: str = "--force", hint: str = "") -> Path:
+    """Check, before any work, that the output folder ``path`` can be written: missing, empty,
+    or (with ``force``) a folder kgarment created.  Anything else -> KgarmentError, nothing
+    touched: a file, a folder of other files (kgarment never deletes what it did not create),
+    a parent that is not a folder."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise KgarmentError(f"{path} is a file, not a folder; give another output folder")
+    parent = next((q for q in [path, *path.parents] if q.exists()), Path("."))
+    if not parent.is_dir():
+        raise KgarmentError(f"cannot create {path}: {parent} is a file")
+    if not os.access(parent, os.W_OK):
+        raise KgarmentError(f"cannot write into {parent} (permission denied)")
+    if path.is_dir() and not _empty(path):
+        if not owned(path):
+            raise KgarmentError(f"{path} exists and holds files kgarment did not write; it is never replaced, "
+                                "give another output folder")
         if not force:
-            raise KgarmentError(f"output folder {out} exists; use --force to replace it")
-        shutil.rmtree(out) if out.is_dir() else out.unlink()
-    out.mkdir(parents=True, exist_ok=True)
-    return out
+            raise KgarmentError(f"output folder {path} exists; {hint or 'use ' + flag + ' to replace it'}")
+    return path
+
+
+def replace_folder(path, fill, kind: str) -> Path:
+    """Write a new folder ``path`` with ``fill(tmp)`` and only then put it in place: the new
+    folder is filled beside the old one, the old one (checked by :func:`check_replaceable`)
+    is swapped out and deleted last, so a failure while filling leaves the old one as it was.
+    Returns ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.new-"))
+    try:
+        mark_folder(tmp, kind)
+        fill(tmp)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    old = None
+    if path.exists():
+        if not (_empty(path) or owned(path)):  # checked before the work; checked again now
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise KgarmentError(f"{path} holds files kgarment did not write; it is never replaced")
+        old = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.old-"))
+        os.replace(path, old / path.name)
+    os.replace(tmp, path)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+    return path
+
+
+def check_output_folder(path, flag: str = "--out") -> Path:
+    """Check, before any work, that a folder ``path`` (named by ``flag``) can be created or
+    written into: not a file, its nearest existing parent a writable folder."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise KgarmentError(f"{flag} {path} is a file, not a folder")
+    parent = next((q for q in [path, *path.parents] if q.exists()), Path("."))
+    if not parent.is_dir():
+        raise KgarmentError(f"{flag} {path}: {parent} is a file, not a folder")
+    if not os.access(parent, os.W_OK):
+        raise KgarmentError(f"{flag} {path}: cannot write into {parent} (permission denied)")
+    return path
+
+
+def check_output_file(path, flag: str) -> Path:
+    """Check, before any work, that a file ``path`` (named by ``flag``, e.g. --json) can be
+    written: not a folder, its nearest existing parent a writable folder."""
+    path = Path(path)
+    if path.is_dir():
+        raise KgarmentError(f"{flag} {path} is a folder; give a file name")
+    parent = next((q for q in path.parents if q.exists()), Path("."))
+    if not parent.is_dir():
+        raise KgarmentError(f"{flag} {path}: {parent} is a file, not a folder")
+    if not os.access(parent, os.W_OK):
+        raise KgarmentError(f"{flag} {path}: cannot write into {parent} (permission denied)")
+    return path
+
+
+def load_npz(path, what: str, keys=()) -> dict:
+    """The arrays of ``path`` (a kgarment ``what``) as a dict; a missing, damaged or foreign
+    file -> one KgarmentError naming it (and the ``keys`` it must hold)."""
+    import zipfile
+
+    path = Path(path)
+    if not path.is_file():
+        raise KgarmentError(f"{what} not found: {path}")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            missing = [k for k in keys if k not in z.files]
+            if missing:
+                raise KgarmentError(f"{path} is not a kgarment {what}: it has no {missing[0]!r} array")
+            return {k: z[k] for k in z.files}
+    except KgarmentError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+        raise KgarmentError(f"{path} is damaged or not a kgarment {what} ({type(exc).__name__}: {exc})") from None

@@ -29,7 +29,8 @@ PHENOTYPE_FIELDS = ("gender", "age", "muscle", "weight", "height", "proportions"
 
 @dataclass(frozen=True)
 class Phenotype:
-    """Anny's phenotype parameters, each in [0, 1] (0.5 = the model's average)."""
+    """Anny's phenotype parameters, each in [0, 1] (0.5 = the model's average).  ``gender``:
+    0 male, 1 female (Anny's convention: its shape distribution reads gender <= 0.5 as boys)."""
 
     gender: float = 0.5
     age: float = 0.5
@@ -40,11 +41,13 @@ class Phenotype:
 
     def __post_init__(self):
         for k, v in asdict(self).items():
-            if not isinstance(v, (int, float)) or not 0.0 <= float(v) <= 1.0:
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= float(v) <= 1.0:
                 raise KgarmentError(f"phenotype {k} = {v!r} is outside [0, 1]")
 
     @classmethod
     def from_dict(cls, d: dict) -> "Phenotype":
+        if not isinstance(d, dict):
+            raise KgarmentError(f"[body] phenotype = {d!r} must be a table {{{' = 0.5, '.join(PHENOTYPE_FIELDS)} = 0.5}}")
         bad = set(d) - set(PHENOTYPE_FIELDS)
         if bad:
             raise KgarmentError(f"unknown phenotype parameter {sorted(bad)[0]!r}; valid: {', '.join(PHENOTYPE_FIELDS)}")
@@ -62,6 +65,16 @@ def _anny_version() -> str:
         return "unknown"
 
 
+def _quiet_warp() -> None:
+    """Keep NVIDIA Warp (which Anny uses) from printing its start-up banner on stdout unless
+    kgarment logs at INFO or more (without -q)."""
+    try:
+        import warp
+    except ImportError:  # pragma: no cover - anny without warp
+        return
+    warp.config.quiet = not log.isEnabledFor(logging.INFO)
+
+
 class _AnnyModel:
     """Loads Anny lazily (only on a cache miss)."""
 
@@ -71,6 +84,7 @@ class _AnnyModel:
 
     def model(self):
         if self._model is None:
+            _quiet_warp()
             import anny  # deferred: importing and building Anny is the slow part
             import torch
 

@@ -36,6 +36,10 @@ def read_mesh(path) -> tuple[np.ndarray, np.ndarray]:
     f = np.asarray(mesh.faces, dtype=np.int64)
     if len(f) == 0 or f.shape[1] != 3:
         raise KgarmentError(f"mesh {path} has no triangles")
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        raise KgarmentError(f"mesh {path} has {int(bad.sum())} vertices with NaN or infinite coordinates "
+                            f"(the first: vertex {int(np.flatnonzero(bad)[0])})")
     return v, f
 
 

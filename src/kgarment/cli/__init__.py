@@ -22,8 +22,16 @@ GROUPS = (inputs, simulate, design, fabricate, studio, reproduce)
 QUIET_SOLVER = ("design", "demo", "reproduce")  # the progress bar says enough
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (the field, what is allowed; exit status 2), like
+    every other user error of kgarment, instead of the usage block."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="kgarment", description="Design active kinesthetic garments with "
+    ap = Parser(prog="kgarment", description="Design active kinesthetic garments with "
                                                               "electrostatic clutches.")
     ap.add_argument("--version", action="version", version=f"kgarment {__version__}")
     ap.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")

@@ -3,12 +3,52 @@ activation syntax, the design progress bar and output checks."""
 
 from __future__ import annotations
 
+import argparse
 import math
 from contextlib import contextmanager
 
+from kgarment import constants as C
 from kgarment.errors import KgarmentError
 
 DEFAULT_PROBLEM_HELP = "problem file (TOML); default: the built-in three-motion shirt"
+
+
+def integer(low: int | None = None, high: int | None = None):
+    """An argparse type: an integer (written as one: not 2.5, not true) in [low, high]."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if (low is not None and v < low) or (high is not None and v > high):
+            raise argparse.ArgumentTypeError(f"{v} is outside [{'' if low is None else low}, "
+                                             f"{'' if high is None else high}]")
+        return v
+
+    return parse
+
+
+def number(low: float | None = None, high: float | None = None, low_open: bool = False):
+    """An argparse type: a finite number in [low, high] (``low_open``: (low, high])."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        too_low = low is not None and (v <= low if low_open else v < low)
+        if not math.isfinite(v) or too_low or (high is not None and v > high):
+            lo = "" if low is None else f"{'(' if low_open else '['}{low:g}"
+            raise argparse.ArgumentTypeError(f"{text} is outside {lo or '('}, {'' if high is None else f'{high:g}'}]"
+                                             if math.isfinite(v) else f"{text} is not a finite number")
+        return v
+
+    return parse
+
+
+SUBDIVISION = integer(min(C.SUBDIVISIONS), max(C.SUBDIVISIONS))
+MAX_ITERATIONS = integer(*C.DESIGN_RANGES["max_iterations"])
 
 
 def add_problem(sp, help: str = DEFAULT_PROBLEM_HELP) -> None:
@@ -27,15 +67,15 @@ def add_overrides(sp, *, motion: bool = True, garment: bool = True, subdivision:
     if garment:
         sp.add_argument("--garment", help="garment template name (overrides the problem's)")
     if subdivision:
-        sp.add_argument("--subdivision", type=int, help="garment subdivision level 0-3 (resolution)")
+        sp.add_argument("--subdivision", type=SUBDIVISION, help="garment subdivision level 0-3 (resolution)")
     if materials:
         sp.add_argument("--preset", help="material preset: paper or reference (default: the problem's [materials])")
     if solver:
         sp.add_argument("--solver", help="solver: newton or lbfgs (default: the problem's [solver] method)")
-        sp.add_argument("--tol", type=float, help="solver tolerance (scaled force residual; default: the problem's "
+        sp.add_argument("--tol", type=number(*C.SOLVER_RANGES["tol"]), help="solver tolerance (scaled force residual; default: the problem's "
                                                   "[solver] tol, capped at the evaluation tolerance 1e-4)")
     if max_iterations:
-        sp.add_argument("--max-iterations", type=int, help="stop after this many iterations")
+        sp.add_argument("--max-iterations", type=MAX_ITERATIONS, help="stop after this many iterations")
 
 
 def overrides(args) -> dict:

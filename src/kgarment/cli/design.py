@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from kgarment.cli.common import (
+    MAX_ITERATIONS,
+    SUBDIVISION,
     add_device,
     add_overrides,
     add_problem,
@@ -17,7 +19,6 @@ from kgarment.cli.common import (
     print_evaluation,
     rho_line,
 )
-from kgarment.errors import KgarmentError
 
 DEMO_EXAMPLE = "shirt_three_motions"
 
@@ -27,7 +28,8 @@ def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: b
     from kgarment.design import finish, open_run
 
     dr = open_run(None if resume else problem, out, resume=resume, force=force, device=device)
-    print(dr.problem.describe())
+    if not quiet:
+        print(dr.problem.describe())
     setup = dr.setup
     print(f"garment {dr.garment.name}: {dr.garment.n_faces} faces, {len(dr.strips)} clutches, "
           f"{len(setup.states())} states per iteration ({setup.solver.workers} worker processes); run folder {dr.run}")
@@ -97,15 +99,15 @@ def cmd_evaluate(args) -> int:
     from kgarment.design.driver import run_inputs
     from kgarment.design.loads import load_chart
     from kgarment.design.run import iteration_of
-    from kgarment.io import atomic_write_text
+    from kgarment.io import atomic_write_text, check_output_file
     from kgarment.problem import load_problem, override
 
     src = parse_design_source(args.design, run_required=True)
     p = override(load_problem(src.run / "problem.toml"), motions=args.motion)
     k = iteration_of(src)
     for flag, path in (("--json", args.json), ("--plot", args.plot)):
-        if path and Path(path).is_dir():
-            raise KgarmentError(f"{flag} {path} is a folder; give a file name")
+        if path:
+            check_output_file(path, flag)  # before the evaluation, not after it
     p, body, garment, strips = run_inputs(src.run, p)
     ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device)
     design = load_design(src, ev.n_faces)
@@ -149,8 +151,8 @@ def add_parsers(sub) -> None:
                                      "see kgarment examples)")
     add_device(sp)
     sp.add_argument("--out", default="runs/demo", help="run folder (default runs/demo); an unfinished run is resumed")
-    sp.add_argument("--subdivision", type=int, default=0,
+    sp.add_argument("--subdivision", type=SUBDIVISION, default=0,
                     help="garment resolution (default 0; 1 is the default elsewhere, 2 matches the paper)")
-    sp.add_argument("--max-iterations", type=int, help="stop after this many iterations")
+    sp.add_argument("--max-iterations", type=MAX_ITERATIONS, help="stop after this many iterations")
     sp.add_argument("--force", action="store_true", help="start over, replacing the run folder")
     sp.set_defaults(func=cmd_demo)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from kgarment.cli.common import add_device
+from kgarment.cli.common import add_device, integer, number
 from kgarment.errors import KgarmentError
 
 
@@ -41,7 +41,7 @@ def cmd_fabricate(args) -> int:
     )
     from kgarment.fabricate.cleanup import CleanupOptions
     from kgarment.fabricate.patterns import PatternOptions
-    from kgarment.io import prepare_output_folder
+    from kgarment.io import check_replaceable, replace_folder
     from kgarment.problem import build_body, build_clutches, build_garment, load_problem
 
     src, pfile, label, default_out = resolve_source(args.design, args.problem)
@@ -51,8 +51,7 @@ def cmd_fabricate(args) -> int:
         smooth_iterations=0 if args.no_smooth else 10, sheet_width=args.sheet_width, paper=args.paper)
     p = load_problem(pfile)
     out = Path(args.out) if args.out else default_out
-    if out.exists() and any(out.iterdir()) and not args.force:  # fail before the slow part
-        raise KgarmentError(f"output folder {out} exists; use --force to replace it")
+    check_replaceable(out, args.force)  # fail before the slow part
     t0 = time.time()
     body = build_body(p)
     garment = build_garment(p, body)
@@ -76,8 +75,13 @@ def cmd_fabricate(args) -> int:
         for b, a in zip(before, after):
             flag = "" if b["converged"] and a["converged"] else "  (NOT converged)"
             print(f"  rho {b['motion']:22s} {b['state']:5s} {b['rho']:7.3f} -> {a['rho']:7.3f}{flag}")
-    prepare_output_folder(out, args.force)
-    files = write_fabrication(fab, out, evaluation)
+    written: list[Path] = []
+
+    def fill(tmp: Path) -> None:  # written beside the old folder, then swapped in
+        written.extend(Path(f).relative_to(tmp) for f in write_fabrication(fab, tmp, evaluation))
+
+    replace_folder(out, fill, "fabrication")
+    files = [out / f for f in written]
     print(f"{len(fab.patterns.patches)} patches, {len(fab.patterns.seams)} seams, {time.time() - t0:.1f} s:")
     limit = options.patterns.max_distortion
     for pt in fab.patterns.patches:
@@ -102,18 +106,18 @@ def add_parsers(sub) -> None:
     sp.add_argument("--no-resimulate", action="store_true", help="skip re-simulating rho before/after the clean-up")
     add_device(sp)
     g = sp.add_argument_group("clean-up (SI units; 0 switches a step off)")
-    g.add_argument("--min-island-area", type=float, default=4e-4, metavar="M2",
+    g.add_argument("--min-island-area", type=number(0.0, 1.0), default=4e-4, metavar="M2",
                    help="remove islands of reinforcement smaller than this, m^2 (default 4e-4 = 4 cm^2)")
-    g.add_argument("--max-hole-area", type=float, default=4e-4, metavar="M2",
+    g.add_argument("--max-hole-area", type=number(0.0, 1.0), default=4e-4, metavar="M2",
                    help="fill enclosed soft holes smaller than this, m^2 (default 4e-4)")
-    g.add_argument("--min-width", type=float, default=0.01, metavar="M",
+    g.add_argument("--min-width", type=number(0.0, 0.5), default=0.01, metavar="M",
                    help="minimum feature width, m (default 0.01)")
     g = sp.add_argument_group("patterns")
     g.add_argument("--method", default="arap", choices=("arap", "lscm"), help="flattening (default arap)")
-    g.add_argument("--max-distortion", type=float, default=0.05,
+    g.add_argument("--max-distortion", type=number(0.0, 1.0, low_open=True), default=0.05,
                    help="cut a seam where an edge's length changes by more than this fraction (default 0.05)")
-    g.add_argument("--max-cuts", type=int, default=4, help="at most this many seams per piece (default 4)")
+    g.add_argument("--max-cuts", type=integer(0, 64), default=4, help="at most this many seams per piece (default 4)")
     g.add_argument("--no-smooth", action="store_true", help="keep the raw triangle-edge outlines")
-    g.add_argument("--sheet-width", type=float, default=600.0, help="cutting sheet width, mm (default 600)")
+    g.add_argument("--sheet-width", type=number(50.0, 10000.0), default=600.0, help="cutting sheet width, mm (default 600)")
     g.add_argument("--paper", default="a4", choices=("a4", "letter"), help="PDF page size (default a4)")
     sp.set_defaults(func=cmd_fabricate)

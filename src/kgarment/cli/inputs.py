@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from kgarment.cli.common import add_device, add_overrides, add_problem, load
+from kgarment.cli.common import add_device, add_overrides, add_problem, integer, load, number
 from kgarment.errors import KgarmentError
 
 
@@ -39,11 +39,14 @@ def cmd_render(args) -> int:
     import logging
     import time
 
+    from kgarment.io import check_output_folder
     from kgarment.problem import build_body, build_clutches, build_garment
     from kgarment.render import render_poses
 
     p = load(args)
-    print(p.describe())
+    check_output_folder(args.out)
+    if not args.quiet:
+        print(p.describe())
     t0 = time.time()
     body = build_body(p)
     garment = build_garment(p, body)
@@ -58,14 +61,16 @@ def cmd_render(args) -> int:
 def cmd_clutches(args) -> int:
     from kgarment.clutch import build_clutch, save_clutches
     from kgarment.clutch.suggest import suggest_clutches
+    from kgarment.io import check_output_folder
     from kgarment.problem import build_body, build_clutches, build_garment
     from kgarment.render import render_scene
 
     p = load(args)
-    print(p.describe())
+    out = check_output_folder(args.out)
+    if not args.quiet:
+        print(p.describe())
     body = build_body(p)
     garment = build_garment(p, body)
-    out = Path(args.out)
     if args.action == "suggest":
         specs = suggest_clutches(garment, count=args.count, length=args.length)
         strips = [build_clutch(s, garment.rest_vertices, garment.faces) for s in specs]
@@ -116,8 +121,8 @@ def add_parsers(sub) -> None:
                     "suggest: propose clutches over the most stretched spots")
     add_problem(sp)
     add_device(sp)
-    sp.add_argument("--count", type=int, default=3, help="suggest: number of clutches (default 3)")
-    sp.add_argument("--length", type=float, default=0.10, help="suggest: clutch length in metres (default 0.10)")
+    sp.add_argument("--count", type=integer(1, 64), default=3, help="suggest: number of clutches (default 3)")
+    sp.add_argument("--length", type=number(0.01, 1.0), default=0.10, help="suggest: clutch length in metres (default 0.10)")
     sp.add_argument("--out", default="runs/clutches", help="output folder (default runs/clutches)")
     sp.add_argument("--force", action="store_true", help="overwrite an existing clutch file")
     sp.set_defaults(func=cmd_clutches)

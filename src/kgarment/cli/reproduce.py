@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 from kgarment import constants as C
 from kgarment.cli.common import add_device
@@ -13,14 +12,13 @@ from kgarment.errors import KgarmentError
 def cmd_reproduce(args) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+    from kgarment.io import check_output_folder
     from kgarment.reproduce.catalog import RESOLUTIONS, select
     from kgarment.reproduce.pipeline import reproduce
     from kgarment.reproduce.report import write_report
 
     exps = select(args.experiments)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise KgarmentError(f"--out {out} is a file, not a folder")
+    out = check_output_folder(args.out)
     if args.report_only:
         from kgarment.reproduce.catalog import DATA
 

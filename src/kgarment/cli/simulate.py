@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from kgarment.cli.common import add_device, add_overrides, add_problem, load, parse_activation
 from kgarment.errors import KgarmentError
 
@@ -13,11 +11,13 @@ def cmd_simulate(args) -> int:
 
     from kgarment.design import Evaluator, load_design
     from kgarment.design.report import write_equilibrium
+    from kgarment.io import check_output_folder
     from kgarment.problem import build_body, build_clutches, build_garment
 
     p = load(args)
-    print(p.describe())
-    out = Path(args.out)
+    if not args.quiet:
+        print(p.describe())
+    out = check_output_folder(args.out)
     motions = list(args.motion or p.motions)
     if any((out / f"{m}.ply").exists() for m in motions) and not args.force:
         raise KgarmentError(f"{out} already holds results; use --force to overwrite them")

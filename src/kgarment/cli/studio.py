@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from kgarment.cli.common import add_device, add_overrides, add_problem, overrides
+from kgarment.cli.common import add_device, add_overrides, add_problem, integer, overrides
 from kgarment.errors import KgarmentError
 
 
@@ -16,7 +16,8 @@ def cmd_studio(args) -> int:
     from kgarment.studio import Studio, read_source
 
     opened = read_source(args.problem).with_overrides(**overrides(args))
-    print(opened.problem.describe())
+    if not args.quiet:
+        print(opened.problem.describe())
     studio = Studio(opened, host=args.host, port=args.port, session=args.session, runs=args.runs, device=args.device)
     print(f"kgarment studio: open {studio.url} in a browser (Ctrl-C stops the server)")
     try:
@@ -39,7 +40,7 @@ def add_parsers(sub) -> None:
     sp.description = ("Serve the studio page for PROBLEM (a problem file), RUN (a design run folder) or a studio "
                       "session folder; without one, the built-in three-motion shirt.")
     sp.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1: this machine only)")
-    sp.add_argument("--port", type=int, default=8080, help="port (default 8080)")
+    sp.add_argument("--port", type=integer(1, 65535), default=8080, help="port (default 8080)")
     sp.add_argument("--session", help="folder that Save writes the session to (default: the opened session)")
     sp.add_argument("--runs", default="runs/studio", help="where optimisations started from the page write their "
                     "run folders (default runs/studio)")

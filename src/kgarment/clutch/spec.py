@@ -108,6 +108,10 @@ def _positive(value: object, who: str, what: str) -> float:
     return v
 
 
+MAX_LENGTH = 1.0   # metres: the longest clutch accepted
+MAX_ASPECT = 0.5   # a clutch's width may be at most this share of its length
+
+
 @dataclass(frozen=True)
 class ClutchSpec:
     """One clutch as a designer places it. Validated (and normalised) on construction.
@@ -144,6 +148,14 @@ class ClutchSpec:
         object.__setattr__(self, "direction", _direction(self.direction, start, who))
         object.__setattr__(self, "length", _positive(self.length, who, "length"))
         object.__setattr__(self, "width", _positive(self.width, who, "width"))
+        if self.length > MAX_LENGTH:
+            raise ClutchError(f"{who}: field 'length' = {self.length:g} m; allowed: up to {MAX_LENGTH:g} m")
+        if self.width > MAX_ASPECT * self.length:
+            raise ClutchError(f"{who}: field 'width' = {self.width:g} m is more than {MAX_ASPECT:g} x its length "
+                              f"({self.length:g} m); a clutch is a strip (the paper's: 15 cm x 2.5 cm)")
+        d = self.direction
+        if isinstance(d, Towards) and not isinstance(start, SurfacePoint) and d.target == start:
+            raise ClutchError(f"{who}: field 'towards' is the start itself; give another point or landmark")
         p = self.prestrain
         if isinstance(p, bool) or not isinstance(p, (int, float, np.number)) or not 0 < p <= 1:
             raise ClutchError(f"{who}: field 'prestrain' must be in (0, 1], got {p!r}")

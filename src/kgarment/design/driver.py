@@ -29,11 +29,11 @@ from kgarment.design.evaluate import DesignEvaluation, Evaluator
 from kgarment.design.loads import load_chart
 from kgarment.design.loop import LoopState, initial_state, run_loop
 from kgarment.design.report import finish_run
-from kgarment.design.run import best_iteration, load_checkpoint, prepare_run_folder, save_checkpoint
+from kgarment.design.run import best_iteration, check_run_folder, load_checkpoint, save_checkpoint
 from kgarment.design.setup import DesignSetup, setup_from_problem
 from kgarment.errors import Cancelled, KgarmentError
 from kgarment.garment import Garment
-from kgarment.io import atomic_save_npz, atomic_write_text
+from kgarment.io import atomic_save_npz, atomic_write_text, replace_folder
 from kgarment.problem import (
     Problem,
     build_body,
@@ -78,8 +78,11 @@ def open_run(problem: Problem | None, run, *, resume: bool = False, force: bool 
     body, garment, clutches : already built parts to use instead of building them from the
     problem (the studio passes its posed body, its garment with painted attachments and its
     clutch specs); they are written into the folder so that a resume rebuilds the same.
+
+    A new run is written beside an existing folder and swapped in only once its problem is
+    built (``force`` replaces only a kgarment run folder): nothing is lost when it fails.
     """
-    run = prepare_run_folder(run, force=force, resume=resume)
+    run = check_run_folder(run, force=force, resume=resume)
     if resume:
         problem = load_problem(run / "problem.toml")
     custom_garment = garment is not None and not resume
@@ -89,9 +92,10 @@ def open_run(problem: Problem | None, run, *, resume: bool = False, force: bool 
         garment = _with_attachments(garment, run / ATTACHMENTS)
     specs = clutch_specs(problem, body) if clutches is None or resume else list(clutches)
     strips = tuple(build_clutches(problem, body, garment, specs))
-    if not resume:
-        write_inputs(run, problem, body, garment, specs, custom_garment)
     setup = setup_from_problem(problem, body, garment, strips, "design", device)
+    if not resume:
+        replace_folder(run, lambda tmp: write_inputs(tmp, problem, body, garment, specs, custom_garment, home=run),
+                       "run")
     st = load_checkpoint(run) if resume else initial_state(setup)
     return DesignRun(run, problem, body, garment, strips, setup, st)
 
@@ -109,13 +113,15 @@ def run_inputs(run, problem: Problem | None = None) -> tuple[Problem, Body, Garm
     return problem, body, garment, tuple(build_clutches(problem, body, garment))
 
 
-def write_inputs(run: Path, problem: Problem, body: Body, garment: Garment, specs, custom_garment: bool) -> None:
+def write_inputs(run: Path, problem: Problem, body: Body, garment: Garment, specs, custom_garment: bool,
+                 home: Path | None = None) -> None:
     """problem.toml (+ problem.txt, problem.source.toml), clutches.toml and, for a garment
-    given by the caller, attachments.npz of a new run folder."""
+    given by the caller, attachments.npz of a new run folder ``run`` (whose files will live
+    in ``home``, default ``run``: problem.toml refers to its clutch file there)."""
     if specs:
         marks = body_landmarks(body) if body.rigged else None
         save_clutches(run / "clutches.toml", specs, garment.rest_vertices, garment.faces, landmarks=marks)
-    doc = problem_to_dict(problem, run / "clutches.toml" if specs else None)
+    doc = problem_to_dict(problem, Path(home or run) / "clutches.toml" if specs else None)
     if not specs:
         doc["clutches"] = {"clutch": []}  # no clutches, not the garment's default layout
     if problem.source and Path(problem.source).is_file():

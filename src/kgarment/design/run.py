@@ -17,18 +17,17 @@ import csv
 import io
 import json
 import os
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from kgarment.constants import target_reached
+from kgarment.constants import X_MIN, target_reached
 from kgarment.design.beso import design_values
 from kgarment.design.loop import LoopState
 from kgarment.design.metrics import Stored
 from kgarment.errors import KgarmentError
-from kgarment.io import atomic_save_npz, atomic_write_text
+from kgarment.io import atomic_save_npz, atomic_write_text, check_replaceable, load_npz
 
 
 @dataclass(frozen=True)
@@ -77,22 +76,25 @@ def load_design(source: DesignSource | str | os.PathLike, n_faces: int) -> np.nd
             raise KgarmentError(f"the design in {src.run} has {hist.shape[1]} faces, the garment {n_faces}")
         return design_values(hist[k])
     path = src.file
+    if path.suffix == ".npz":
+        z = load_npz(path, "design file (.npz with a 'design' array)")
+        if not z:
+            raise KgarmentError(f"design {path} holds no array; save the design (m,) as 'design'")
+        d = z["design"] if "design" in z else next(iter(z.values()))
+    else:
+        try:
+            d = np.load(path, allow_pickle=False) if path.suffix == ".npy" else np.loadtxt(path)
+        except (OSError, ValueError, EOFError) as exc:
+            raise KgarmentError(f"cannot read design {path} (.npy, .npz or text of {n_faces} numbers): {exc}") from None
     try:
-        if path.suffix == ".npz":
-            with np.load(path) as z:
-                d = z["design"] if "design" in z.files else z[z.files[0]]
-        elif path.suffix == ".npy":
-            d = np.load(path)
-        else:
-            d = np.loadtxt(path)
-    except Exception as exc:
-        raise KgarmentError(f"cannot read design {path}: {exc}") from None
-    d = np.asarray(d, dtype=np.float64).reshape(-1)
+        d = np.asarray(d, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise KgarmentError(f"design {path} does not hold numbers") from None
     if d.shape != (n_faces,):
         raise KgarmentError(f"design {path} has {d.size} values, the garment has {n_faces} faces")
-    if not np.all((d > 0) & (d <= 1)):
-        raise KgarmentError(f"design {path}: values must lie in (0, 1]")
-    return d
+    if not np.all((d >= 0) & (d <= 1)):
+        raise KgarmentError(f"design {path}: values must lie in [0, 1] (1 reinforced; 0 or {X_MIN:g} plain cloth)")
+    return np.maximum(d, X_MIN)  # plain cloth is X_MIN, not 0 (a 0/1 design is accepted as such)
 
 
 def best_iteration(rows, target: float, er: float) -> int:
@@ -109,9 +111,9 @@ def final_iteration(run) -> int:
     run = Path(run)
     path = run / "final" / "design.npz"
     if path.is_file():
-        with np.load(path) as z:
-            if "iteration" in z.files:
-                return int(z["iteration"])
+        z = load_npz(path, "final design")
+        if "iteration" in z:
+            return int(z["iteration"])
     return len(load_design_history(run)) - 1
 
 
@@ -126,24 +128,23 @@ def run_status(run) -> str:
     ck = run / "checkpoint.npz"
     if not ck.is_file():
         return "new"
-    with np.load(ck) as z:
-        done = bool(z["done"])
+    done = bool(load_npz(ck, "checkpoint", ("done",))["done"])
     return "finished" if done and (run / "final" / "design.npz").is_file() else "unfinished"
 
 
-def prepare_run_folder(path, force: bool = False, resume: bool = False) -> Path:
-    """Create (or, for resume, check) a run folder; never clobber one without ``force``."""
+def check_run_folder(path, force: bool = False, resume: bool = False) -> Path:
+    """Check a run folder before anything is built: for ``resume``, that it holds a
+    checkpoint; otherwise that it is missing, empty or (with ``force``) a kgarment run folder
+    (:func:`kgarment.io.check_replaceable`; the new run replaces it only once its problem is
+    built, see :func:`kgarment.design.driver.open_run`)."""
     path = Path(path)
     if resume:
         if not (path / "checkpoint.npz").is_file():
             raise KgarmentError(f"{path} is not a resumable run (no checkpoint.npz)")
         return path
-    if path.exists() and any(path.iterdir()):
-        if not force:
-            raise KgarmentError(f"run folder {path} exists; use --resume to continue it or --force to replace it")
-        shutil.rmtree(path)
-    path.mkdir(parents=True, exist_ok=True)
-    return path
+    hint = ("use --resume to continue it or --force to replace it" if (path / "checkpoint.npz").is_file() else
+            "it stopped before its first checkpoint, so there is nothing to resume: use --force to start it again")
+    return check_replaceable(path, force, hint=hint)
 
 
 def save_checkpoint(run: Path, st: LoopState) -> None:
@@ -170,22 +171,35 @@ def save_checkpoint(run: Path, st: LoopState) -> None:
     write_metrics(run, st.metrics)
 
 
+CHECKPOINT_KEYS = ("iteration", "design", "target", "has_alpha", "alpha_prev", "warm_names", "objectives", "ref_keys",
+                   "ref_values", "ref_clutch", "metrics", "done", "n_faces", "designs")
+
+
 def load_checkpoint(run: Path) -> LoopState:
-    with np.load(run / "checkpoint.npz") as z:
-        names = [str(n) for n in z["warm_names"]]
-        keys = [tuple(str(k).split("|")) for k in z["ref_keys"]]
-        m = int(z["n_faces"])
-        designs = [np.unpackbits(row)[:m].astype(bool) for row in z["designs"]]
-        return LoopState(
-            iteration=int(z["iteration"]), design=z["design"].copy(), target=float(z["target"]),
-            alpha_prev=z["alpha_prev"].copy() if bool(z["has_alpha"]) else None,
-            warm={n: z[f"warm_{i}"].copy() for i, n in enumerate(names)},
-            objectives=tuple(float(v) for v in z["objectives"]),
-            reference={k: float(v) for k, v in zip(keys, z["ref_values"])},
-            reference_stored={k: Stored(z[f"ref_faces_{i}"].copy(), float(c))
-                              for i, (k, c) in enumerate(zip(keys, z["ref_clutch"]))},
-            designs=tuple(designs), metrics=tuple(json.loads(str(z["metrics"]))), done=bool(z["done"]),
-        )
+    """The loop state saved by :func:`save_checkpoint` (a damaged file -> one KgarmentError)."""
+    path = Path(run) / "checkpoint.npz"
+    z = load_npz(path, "checkpoint (delete the run folder and start again, or give another --out)", CHECKPOINT_KEYS)
+    try:
+        return _state_from(z)
+    except (KeyError, ValueError, IndexError, TypeError) as exc:
+        raise KgarmentError(f"{path} is damaged ({type(exc).__name__}: {exc}); start the run again") from None
+
+
+def _state_from(z: dict) -> LoopState:
+    names = [str(n) for n in z["warm_names"]]
+    keys = [tuple(str(k).split("|")) for k in z["ref_keys"]]
+    m = int(z["n_faces"])
+    designs = [np.unpackbits(row)[:m].astype(bool) for row in z["designs"]]
+    return LoopState(
+        iteration=int(z["iteration"]), design=z["design"].copy(), target=float(z["target"]),
+        alpha_prev=z["alpha_prev"].copy() if bool(z["has_alpha"]) else None,
+        warm={n: z[f"warm_{i}"].copy() for i, n in enumerate(names)},
+        objectives=tuple(float(v) for v in z["objectives"]),
+        reference={k: float(v) for k, v in zip(keys, z["ref_values"])},
+        reference_stored={k: Stored(z[f"ref_faces_{i}"].copy(), float(c))
+                          for i, (k, c) in enumerate(zip(keys, z["ref_clutch"]))},
+        designs=tuple(designs), metrics=tuple(json.loads(str(z["metrics"]))), done=bool(z["done"]),
+    )
 
 
 def load_design_history(run) -> np.ndarray:
@@ -193,9 +207,12 @@ def load_design_history(run) -> np.ndarray:
     path = Path(run) / "designs.npz"
     if not path.is_file():
         raise KgarmentError(f"{run} has no designs.npz; is it a run folder?")
-    with np.load(path) as z:
-        m = int(z["n_faces"])
-        return np.array([np.unpackbits(r)[:m].astype(bool) for r in z["designs"]])
+    z = load_npz(path, "design history", ("designs", "n_faces"))
+    m = int(z["n_faces"])
+    hist = np.array([np.unpackbits(r)[:m].astype(bool) for r in z["designs"]]).reshape(-1, m)
+    if len(hist) == 0:
+        raise KgarmentError(f"{path} holds no iteration yet; resume the run first")
+    return hist
 
 
 def write_metrics(run: Path, rows) -> None:

@@ -103,7 +103,7 @@ def write_report(fab, out: Path, evaluation=None, files=()) -> list[Path]:
     rho = rho_rows(*evaluation) if evaluation else []
     doc = {"garment": fab.garment.name, "faces": fab.garment.n_faces, "cleanup": clean, "patches": patches,
            "seams": seams, "rho": rho, "max_distortion": o.patterns.max_distortion, "method": o.patterns.method,
-           "units": "SI (m, m^2); cut files in mm", "files": [str(f) for f in files]}
+           "units": "SI (m, m^2); cut files in mm", "files": [Path(f).name for f in files]}
     (out / "report.json").write_text(json.dumps(doc, indent=1, default=float))
     md = [f"# Fabrication report: {fab.garment.name}", "", "## Clean-up", "",
           (f"- holes filled: {c.holes_filled}; islands removed: {c.islands_removed}; faces removed by the "

@@ -23,6 +23,7 @@ from kgarment.garment.topology import (
 )
 
 ALIASES = {"arm_sleeve": "arm_sleeve.right", "knee_sleeve": "knee_sleeve.right"}
+MIN_GARMENT_FACES = 20  # the fewest body faces a garment mask may select (a garment is a piece of cloth)
 
 
 @dataclass(frozen=True)
@@ -128,10 +129,14 @@ def garment_from_mask(body: Body, mask: np.ndarray, name: str = "garment", subdi
     mask = np.asarray(mask, dtype=bool)
     if mask.shape != (len(body.faces),):
         raise KgarmentError(f"face mask has {mask.size} entries, the body has {len(body.faces)} faces")
+    if mask.sum() < MIN_GARMENT_FACES:
+        raise KgarmentError(f"garment {name!r} selects {int(mask.sum())} faces of the body; a garment needs at least "
+                            f"{MIN_GARMENT_FACES} connected faces")
     if clean:
         mask = clean_face_mask(body.faces, mask)
-    if not mask.any():
-        raise KgarmentError(f"garment {name!r} selects no faces of the body")
+    if mask.sum() < MIN_GARMENT_FACES:
+        raise KgarmentError(f"garment {name!r} keeps {int(mask.sum())} faces once cleaned (its largest connected "
+                            f"piece); a garment needs at least {MIN_GARMENT_FACES}")
     if subdivision not in (0, 1, 2, 3):
         raise KgarmentError(f"subdivision = {subdivision!r}; allowed: 0, 1, 2, 3")
     bf = np.flatnonzero(mask)
@@ -195,6 +200,9 @@ def load_face_mask(path, n_faces: int) -> np.ndarray:
         if a.shape != (n_faces,):
             raise KgarmentError(f"face mask {path} has {a.size} entries, the body has {n_faces} faces")
         return a
+    if not np.issubdtype(a.dtype, np.number) or (np.issubdtype(a.dtype, np.floating)
+                                                 and not np.all(np.isfinite(a) & (a == np.round(a)))):
+        raise KgarmentError(f"face mask {path} must hold face indices (integers) or one boolean per body face")
     a = np.asarray(a, dtype=np.int64).reshape(-1)
     if a.size and (a.min() < 0 or a.max() >= n_faces):
         raise KgarmentError(f"face mask {path} has face indices outside [0, {n_faces - 1}]")

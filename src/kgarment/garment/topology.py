@@ -144,6 +144,8 @@ def clean_face_mask(faces: np.ndarray, mask: np.ndarray, iterations: int = 8) ->
             break
         mask &= ~bow[faces].any(axis=1)
     idx = np.flatnonzero(mask)
+    if idx.size == 0:  # nothing survived the tidying
+        return mask
     sub = adj[idx][:, idx]
     _, labels = connected_components(sub, directed=False)
     big = np.argmax(np.bincount(labels))

@@ -7,6 +7,7 @@ Every field is validated once, here, with a message naming the field and what is
 from __future__ import annotations
 
 import dataclasses
+import math
 import tomllib
 from dataclasses import asdict
 from pathlib import Path
@@ -87,9 +88,13 @@ def section(cls, name: str, d: dict, choices: dict, ranges: dict):
         elif isinstance(default, (int, float)):
             if isinstance(v, bool) or not isinstance(v, (int, float)):
                 raise KgarmentError(f"[{name}] {k} = {v!r} must be a number")
+            if not math.isfinite(v):
+                raise KgarmentError(f"[{name}] {k} = {v!r} must be a finite number")
             if isinstance(default, int) and not float(v).is_integer():
                 raise KgarmentError(f"[{name}] {k} = {v!r} must be an integer")
             v = type(default)(v)
+        elif isinstance(default, str) and not isinstance(v, str):
+            raise KgarmentError(f"[{name}] {k} = {v!r} must be a string")
         if k in choices and v not in choices[k]:
             raise KgarmentError(f"[{name}] {k} = {v!r}; allowed: {', '.join(choices[k])}")
         if k in ranges and not ranges[k][0] <= v <= ranges[k][1]:
@@ -130,10 +135,23 @@ def _rotation(d, where: str) -> Rotation:
         raise KgarmentError(f"{where}: a rotation needs bone and degrees")
     axis = d.get("axis", "x")
     if isinstance(axis, list):
+        if len(axis) != 3 or not all(_finite(a) for a in axis) or not any(axis):
+            raise KgarmentError(f"{where}: axis = {axis!r}; give x, y, z or three finite numbers [ax, ay, az], not all 0")
         axis = tuple(float(a) for a in axis)
-    elif axis not in NAMED_AXES:
+    elif not isinstance(axis, str) or axis not in NAMED_AXES:
         raise unknown(f"axis in {where}", axis, NAMED_AXES)
-    return Rotation(str(d["bone"]), axis, float(d["degrees"]))
+    if not isinstance(d["bone"], str):
+        raise KgarmentError(f"{where}: bone = {d['bone']!r} must be a bone name (a string)")
+    deg = d["degrees"]
+    lo, hi = C.ROTATION_DEGREES
+    if not _finite(deg) or not lo <= deg <= hi:
+        raise KgarmentError(f"{where}: degrees = {deg!r}; allowed: a number in [{lo:g}, {hi:g}]")
+    return Rotation(d["bone"], axis, float(deg))
+
+
+def _finite(v) -> bool:
+    """A finite int or float (not a boolean)."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def _user_motion(name: str, d: dict) -> Motion:
@@ -150,9 +168,15 @@ def _user_motion(name: str, d: dict) -> Motion:
 
 def _motions(m: dict, body: BodySpec) -> tuple[tuple[Motion, ...], tuple[str, ...]]:
     check_keys("motions", m, ("use", "define"))
-    user = tuple(_user_motion(k, v) for k, v in m.get("define", {}).items())
+    define = m.get("define", {})
+    if not isinstance(define, dict) or not all(isinstance(v, dict) for v in define.values()):
+        raise KgarmentError("[motions] define must hold tables: [motions.define.NAME] rotations = [...]")
+    user = tuple(_user_motion(k, v) for k, v in define.items())
     default = [k for k, _ in body.meshes] if body.model == "meshes" else DEFAULT_MOTIONS
-    names = _check_motions(tuple(m.get("use", default)), body, MotionLibrary({u.name: u for u in user}))
+    use = m.get("use", default)
+    if not isinstance(use, list) and not isinstance(use, tuple) or not all(isinstance(u, str) for u in use):
+        raise KgarmentError(f"[motions] use = {use!r} must be a list of motion names, e.g. use = [\"arms_raise\"]")
+    names = _check_motions(tuple(use), body, MotionLibrary({u.name: u for u in user}))
     return user, names
 
 
@@ -167,6 +191,9 @@ def _check_motions(names: tuple[str, ...], body: BodySpec, library: MotionLibrar
             library.get(n)
     if not names:
         raise KgarmentError("[motions] use = [] lists no motion")
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise KgarmentError(f"[motions] use lists {dup[0]!r} more than once")
     return names
 
 
@@ -182,7 +209,9 @@ def _garment(g: dict, base: Path) -> GarmentSpec:
 
 
 def _subdivision(sub) -> int:
-    if sub not in C.SUBDIVISIONS:
+    if isinstance(sub, float) and sub.is_integer():
+        sub = int(sub)
+    if isinstance(sub, bool) or not isinstance(sub, int) or sub not in C.SUBDIVISIONS:
         raise KgarmentError(f"[garment] subdivision = {sub!r}; allowed: {', '.join(map(str, C.SUBDIVISIONS))}")
     return sub
 

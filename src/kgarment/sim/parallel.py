@@ -21,7 +21,10 @@ from __future__ import annotations
 
 import atexit
 import multiprocessing as mp
+import os
 import signal
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 
@@ -51,6 +54,22 @@ def _init_worker() -> None:
     the other workers' cores)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     blas_threads(1)
+    threading.Thread(target=_watch_parent, args=(os.getppid(),), daemon=True, name="kgarment-parent-watch").start()
+
+
+PARENT_POLL = 0.5  # seconds between a worker's checks that its parent still lives
+
+
+def _watch_parent(parent: int) -> None:
+    """End this worker when the process that started it is gone (killed with SIGKILL, say:
+    no atexit runs then, and the orphan would hold its memory and a core).  The worker's
+    parent is the main process, or with "forkserver" the fork server, which exits when
+    the main process does.  A thread polling ``getppid`` rather than Linux's parent-death
+    signal: that signal fires when the *thread* that forked the worker ends, and pools are
+    also started from the studio's job threads."""
+    while os.getppid() == parent:
+        time.sleep(PARENT_POLL)
+    os._exit(1)
 
 
 @atexit.register
