@@ -51,7 +51,8 @@ class Phenotype:
         bad = set(d) - set(PHENOTYPE_FIELDS)
         if bad:
             raise KgarmentError(f"unknown phenotype parameter {sorted(bad)[0]!r}; valid: {', '.join(PHENOTYPE_FIELDS)}")
-        return cls(**{k: float(v) if isinstance(v, (int, float)) else v for k, v in d.items()})
+        return cls(**{k: float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else v
+                      for k, v in d.items()})
 
 
 def _key(obj) -> str:

@@ -102,12 +102,12 @@ def cmd_evaluate(args) -> int:
     from kgarment.io import atomic_write_text, check_output_file
     from kgarment.problem import load_problem, override
 
-    src = parse_design_source(args.design, run_required=True)
-    p = override(load_problem(src.run / "problem.toml"), motions=args.motion)
-    k = iteration_of(src)
     for flag, path in (("--json", args.json), ("--plot", args.plot)):
         if path:
             check_output_file(path, flag)  # before the evaluation, not after it
+    src = parse_design_source(args.design, run_required=True)
+    p = override(load_problem(src.run / "problem.toml"), motions=args.motion)
+    k = iteration_of(src)
     p, body, garment, strips = run_inputs(src.run, p)
     ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device)
     design = load_design(src, ev.n_faces)

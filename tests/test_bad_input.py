@@ -1,0 +1,276 @@
+"""Bad input, as a hostile or clumsy user gives it: every case exits with status 2 and one
+line naming the field or file and what is allowed, no traceback, nothing touched.
+
+The table grows with every new field (issue 20).  Cases run in-process (``main``); the
+ones that fail only once the body is built use the session's cached Anny body.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from kgarment.cli import main
+
+SLEEVE = '[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n[motions]\nuse = ["arm_flexion.right"]\n'
+CLUTCH = ('[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n[motions]\nuse = ["arm_flexion.right"]\n'
+          '[[clutches.clutch]]\nname = "c"\nstart = "elbow_outer.R"\n')
+ROT = '[motions]\nuse = ["w"]\n[motions.define.w]\nrotations = [{ bone = "upperarm01.R", %s }]\n'
+
+
+def run_cli(argv, capsys) -> tuple[int, str, str]:
+    try:
+        rc = main(list(argv))
+    except SystemExit as e:  # argparse
+        rc = e.code
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def assert_one_line(rc, err, message):
+    assert rc == 2, err
+    assert "Traceback" not in err and err.count("\n") == 1, err
+    assert message in err, err
+
+
+# (problem file text, message); each is rendered with `kgarment render p.toml`
+PROBLEMS = [
+    ('[garment]\nsubdivision = false\n', "subdivision = False; allowed: 0, 1, 2, 3"),
+    ('[garment]\nsubdivision = 0.5\n', "subdivision = 0.5; allowed"),
+    (ROT % 'axis = "x", degrees = "sixty"', "degrees = 'sixty'; allowed: a number in [-180, 180]"),
+    (ROT % 'axis = "x", degrees = nan', "degrees = nan; allowed"),
+    (ROT % 'axis = "x", degrees = 1e6', "degrees = 1000000.0; allowed: a number in [-180, 180]"),
+    (ROT % 'axis = ["a", 1, 2], degrees = 30', "axis = ['a', 1, 2]; give x, y, z or three finite numbers"),
+    (ROT % 'axis = [0, 0, 0], degrees = 30', "not all 0"),
+    (ROT % 'axis = "x", degrees = true', "degrees = True; allowed"),
+    ('[motions]\nuse = "arm_extension.right"\n', "use = 'arm_extension.right' must be a list of motion names"),
+    ('[motions]\nuse = ["arms_raise", "arms_raise"]\n', "lists 'arms_raise' more than once"),
+    ('[body]\nphenotype = "tall"\n', "phenotype = 'tall' must be a table"),
+    ('[body]\nphenotype = { gender = true }\n', "phenotype gender = True is outside [0, 1]"),
+    ('[design]\ntol = 0\n', "tol = 0.0 is outside"),
+    ('[design]\nconnected = 1\n', "connected = 1; allowed: true, false"),
+    ('[design]\ntarget_area = inf\n', "target_area = inf must be a finite number"),
+    ('[solver]\ntol = nan\n', "tol = nan must be a finite number"),
+    ('[solver]\nmethod = 5\n', "method = 5 must be a string"),
+    ('[solver]\nworkers = 1.5\n', "workers = 1.5 must be an integer"),
+    (CLUTCH + 'direction = [0, 0, -1]\nlength = 0.1\nwidth = 0.5\n', "field 'width' = 0.5 m is more than 0.5 x"),
+    (CLUTCH + 'direction = [0, 0, -1]\nlength = 3.0\n', "field 'length' = 3 m; allowed: up to 1 m"),
+    (CLUTCH + 'towards = "elbow_outer.R"\nlength = 0.1\n', "'towards' is the start itself"),
+    ('[motions]\ndefine = 3\n', "[motions] define must hold tables"),
+]
+
+
+@pytest.mark.parametrize("toml, message", PROBLEMS, ids=[m[:40] for _, m in PROBLEMS])
+def test_bad_problem_field(toml, message, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.toml").write_text(toml)
+    rc, _, err = run_cli(["render", "p.toml", "--out", "pics"], capsys)
+    assert_one_line(rc, err, message)
+    assert not (tmp_path / "pics").exists()
+
+
+# (command line, message): numbers are checked when the flags are parsed
+FLAGS = [
+    (["design", "--max-iterations", "-5"], "argument --max-iterations: -5 is outside [1, 100000]"),
+    (["design", "--max-iterations", "0"], "argument --max-iterations: 0 is outside"),
+    (["demo", "--max-iterations", "2.5"], "argument --max-iterations: '2.5' is not an integer"),
+    (["design", "--subdivision", "4"], "argument --subdivision: 4 is outside [0, 3]"),
+    (["simulate", "--tol", "nan"], "argument --tol: nan is not a finite number"),
+    (["clutches", "suggest", "--count", "0"], "argument --count: 0 is outside [1, 64]"),
+    (["clutches", "suggest", "--length", "-1"], "argument --length: -1 is outside [0.01, 1]"),
+    (["studio", "--port", "99999"], "argument --port: 99999 is outside [1, 65535]"),
+    (["fabricate", "run", "--max-cuts", "-1"], "argument --max-cuts: -1 is outside [0, 64]"),
+    (["fabricate", "run", "--min-width", "inf"], "argument --min-width: inf is not a finite number"),
+    (["reproduce", "--preset", "steel"], "argument --preset: invalid choice: 'steel'"),
+]
+
+
+@pytest.mark.parametrize("argv, message", FLAGS, ids=[" ".join(a) for a, _ in FLAGS])
+def test_bad_flag(argv, message, capsys):
+    rc, _, err = run_cli(argv, capsys)
+    assert_one_line(rc, err, message)
+
+
+def test_outputs_checked_before_the_work(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("x")
+    (tmp_path / "adir").mkdir()
+    cases = [
+        (["evaluate", "norun", "--json", "adir"], "--json adir is a folder"),
+        (["evaluate", "norun", "--json", "afile/x.json"], "afile is a file, not a folder"),
+        (["evaluate", "norun", "--plot", "adir"], "--plot adir is a folder"),
+        (["simulate", "--out", "afile"], "--out afile is a file, not a folder"),
+        (["render", "--out", "afile/pics"], "afile is a file, not a folder"),
+        (["clutches", "suggest", "--out", "afile"], "--out afile is a file"),
+        (["reproduce", "--out", "afile"], "--out afile is a file"),
+        (["design", "--out", "afile"], "afile is a file, not a folder"),
+    ]
+    for argv, message in cases:
+        rc, _, err = run_cli(argv, capsys)
+        assert_one_line(rc, err, message)
+    assert (tmp_path / "afile").read_text() == "x" and not any((tmp_path / "adir").iterdir())
+
+
+def _foreign_folder(path):
+    (path / "sub").mkdir(parents=True)
+    (path / "notes.txt").write_text("my notes")
+    (path / "sub" / "thesis.txt").write_text("chapter 1")
+
+
+def test_force_never_deletes_a_folder_kgarment_did_not_write(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    _foreign_folder(tmp_path / "mine")
+    for argv in (["design", "--out", "mine", "--force"], ["demo", "--out", "mine", "--force"],
+                 ["design", "--out", "mine"]):
+        rc, _, err = run_cli(argv, capsys)
+        assert_one_line(rc, err, "mine exists and holds files kgarment did not write")
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "my notes"
+    assert (tmp_path / "mine" / "sub" / "thesis.txt").read_text() == "chapter 1"
+
+
+def _old_run(path):
+    """A run folder kgarment wrote (its inputs, a checkpoint) with recognisable bytes."""
+    path.mkdir()
+    for name in ("problem.toml", "problem.txt", "checkpoint.npz", "metrics.csv"):
+        (path / name).write_bytes(f"old {name}".encode())
+    return {p.name: p.read_bytes() for p in path.iterdir()}
+
+
+def test_force_keeps_the_old_run_when_the_new_problem_fails(tmp_path, monkeypatch, capsys, anny_body):
+    monkeypatch.chdir(tmp_path)
+    before = _old_run(tmp_path / "run")
+    np.save(tmp_path / "mask.npy", np.array([3]))  # one face: not a garment
+    (tmp_path / "p.toml").write_text('[garment]\nmask = "mask.npy"\nsubdivision = 0\n')
+    rc, _, err = run_cli(["design", "p.toml", "--out", "run", "--force"], capsys)
+    assert_one_line(rc, err, "selects 1 faces of the body; a garment needs at least 20")
+    assert {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mask.npy", "p.toml", "run"]  # no temporary left
+    (tmp_path / "p.toml").write_text('[motions]\nuse = ["moonwalk"]\n')  # fails while parsing
+    rc, _, err = run_cli(["design", "p.toml", "--out", "run", "--force"], capsys)
+    assert_one_line(rc, err, "unknown motion 'moonwalk'")
+    assert {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()} == before
+
+
+def test_replace_folder_swaps_only_when_filled(tmp_path):
+    from kgarment.errors import KgarmentError
+    from kgarment.io import MARKER, check_replaceable, replace_folder
+
+    before = _old_run(tmp_path / "run")
+
+    def boom(tmp):
+        (tmp / "half.txt").write_text("half")
+        raise RuntimeError("disk full")
+
+    with pytest.raises(RuntimeError):
+        replace_folder(tmp_path / "run", boom, "run")
+    assert {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()} == before
+    replace_folder(tmp_path / "run", lambda tmp: (tmp / "new.txt").write_text("new"), "run")
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == [MARKER, "new.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+    with pytest.raises(KgarmentError, match="use --force"):
+        check_replaceable(tmp_path / "run", force=False)
+    check_replaceable(tmp_path / "run", force=True)  # marked: replaceable
+
+
+@pytest.mark.parametrize("content", [b"", b"PK\x03\x04 truncated", np.random.default_rng(0).bytes(300)],
+                         ids=["empty", "truncated", "random"])
+def test_damaged_run_files(content, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "problem.toml").write_text('[motions]\nuse = ["arms_raise"]\n')
+    (run / "problem.txt").write_text("")
+    (run / "checkpoint.npz").write_bytes(content)
+    (run / "designs.npz").write_bytes(content)
+    rc, _, err = run_cli(["design", "--resume", "run"], capsys)
+    assert_one_line(rc, err, "checkpoint.npz is damaged or not a kgarment checkpoint")
+    rc, _, err = run_cli(["evaluate", "run"], capsys)
+    assert_one_line(rc, err, "designs.npz is damaged or not a kgarment design history")
+    rc, _, err = run_cli(["fabricate", "run"], capsys)
+    assert_one_line(rc, err, "is damaged or not a kgarment")
+    assert (run / "checkpoint.npz").read_bytes() == content
+
+
+def test_crashed_run_says_what_to_do(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "run").mkdir()
+    for name in ("problem.toml", "problem.txt"):
+        (tmp_path / "run" / name).write_text("")
+    rc, _, err = run_cli(["design", "--out", "run"], capsys)
+    assert_one_line(rc, err, "stopped before its first checkpoint, so there is nothing to resume: use --force")
+
+
+BAD_MASKS = [
+    (np.array([1.5, 2.0]), "must hold face indices (integers)"),
+    (np.array([3]), "selects 1 faces of the body; a garment needs at least 20"),
+    (np.zeros(0, np.int64), "selects 0 faces"),
+    (np.array(["a"]), "must hold face indices"),
+]
+
+
+@pytest.mark.parametrize("mask, message", BAD_MASKS, ids=["float", "one face", "empty", "strings"])
+def test_bad_garment_mask(mask, message, tmp_path, monkeypatch, capsys, anny_body):
+    monkeypatch.chdir(tmp_path)
+    np.save(tmp_path / "mask.npy", mask)
+    (tmp_path / "p.toml").write_text('[garment]\nmask = "mask.npy"\nsubdivision = 0\n[motions]\nuse = ["arms_raise"]\n')
+    rc, _, err = run_cli(["render", "p.toml", "--out", "pics"], capsys)
+    assert_one_line(rc, err, message)
+
+
+@pytest.mark.parametrize("which", ["rest", "motion"])
+def test_mesh_with_nan_vertices(which, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    s = trimesh.creation.icosphere(2)
+    v = s.vertices.copy()
+    bad = v.copy()
+    bad[7] = np.nan
+    trimesh.Trimesh(bad if which == "rest" else v, s.faces, process=False).export(tmp_path / "rest.ply")
+    trimesh.Trimesh(bad if which == "motion" else v * 1.1, s.faces, process=False).export(tmp_path / "m.ply")
+    (tmp_path / "p.toml").write_text('[body]\nmodel = "meshes"\nrest = "rest.ply"\nmotions = { m = "m.ply" }\n')
+    rc, _, err = run_cli(["render", "p.toml", "--out", "pics"], capsys)
+    assert_one_line(rc, err, "has 1 vertices with NaN or infinite coordinates (the first: vertex 7)")
+
+
+WORKER_SCRIPT = """
+import os, signal, time
+from kgarment.sim import parallel
+pool = parallel._pool(2)
+for f in [pool.submit(time.sleep, 0.3) for _ in range(4)]:
+    f.result()
+print(" ".join(str(p) for p in pool._processes), flush=True)
+os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            return "\nState:\tZ" not in f.read()  # a zombie has exited
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="reads /proc")
+def test_workers_die_with_their_parent(tmp_path):
+    """SIGKILL of the process that owns the solver pool (no atexit runs) ends its workers."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    with open(tmp_path / "pids.txt", "w") as out:  # a file, not a pipe: orphans would hold a pipe open
+        r = subprocess.run([sys.executable, "-c", WORKER_SCRIPT], stdout=out, stderr=subprocess.DEVNULL, timeout=120)
+    assert r.returncode == -signal.SIGKILL
+    pids = [int(p) for p in (tmp_path / "pids.txt").read_text().split()]
+    assert len(pids) == 2
+    try:
+        deadline = time.time() + 10
+        while time.time() < deadline and any(_alive(p) for p in pids):
+            time.sleep(0.1)
+        assert not any(_alive(p) for p in pids), f"workers {pids} outlived their parent"
+    finally:
+        for p in pids:
+            if _alive(p):
+                os.kill(p, signal.SIGKILL)
