@@ -182,7 +182,7 @@ def test_optimise_scrub_export_and_reopen(studio, tmp_path):
 
     opt = studio.optimiser
     run = tmp_path / "runs" / "r1"
-    job = opt.optimise(str(run), max_iterations=2)
+    job = opt.optimise("r1", max_iterations=2)  # a name: under the studio's --runs folder
     assert job.wait(300) and job.status == "done", job.message
     assert opt.run.n_iterations == 2 and opt.k == 1 and studio.settings.mode == "run"
     # only the problem's motions, although the shared test body is posed in more
@@ -196,7 +196,8 @@ def test_optimise_scrub_export_and_reopen(studio, tmp_path):
     studio.edit.undo()
     assert not studio.state.design.any()
     opt.show_iteration(1)
-    out = str(opt.export_iteration(str(tmp_path / "it1")))
+    out = str(opt.export_iteration("it1"))
+    assert out == str(tmp_path / "runs" / "exports" / "it1.npz")
     assert np.array_equal(load_design(out, studio.state.n_faces) > 0.5, opt.run.design(1))
     assert np.array_equal(load_design(f"{run}@1", studio.state.n_faces), load_design(out, studio.state.n_faces))
     opt.use_iteration(as_b=True)
@@ -220,7 +221,7 @@ def test_stopped_optimisation_resumes_on_the_command_line_with_its_attachments(s
     painted = st.attached.copy()
     assert 0 < painted.sum() < st.base_garment.attached.sum()
     run = tmp_path / "runs" / "stopped"
-    job = studio.optimiser.optimise(str(run), max_iterations=2)
+    job = studio.optimiser.optimise("stopped", max_iterations=2)
     job.cancel()  # checked after every iteration: the run stops after iteration 0
     assert job.wait(300) and job.status == "cancelled", job.message
     assert "kgarment design --resume" in last(studio)[0]
@@ -300,3 +301,41 @@ def test_studio_rho_equals_kgarment_evaluate(anny_body):
     for a, b in zip(mine.rows, theirs):
         assert a["rho"] == pytest.approx(b.rho, rel=1e-6)
         assert a["energy_full"] == pytest.approx(b.energy_full, rel=1e-6)
+
+
+@pytest.mark.parametrize("name", ["../../x", "/tmp/abs", "sub/dir", "..", ".hidden", "", "a b", "x" * 101])
+def test_the_page_writes_only_plain_names_under_its_folder(studio, tmp_path, name):
+    """The studio has no authentication: exports, run folders and sessions typed in the page
+    are plain names under --runs; anything else is refused and nothing is written."""
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    for action in (studio.export_a, studio.optimiser.export_iteration, studio.optimiser.optimise, studio.save):
+        if action == studio.optimiser.optimise and not name.strip():
+            continue  # empty: a fresh dated run folder (not started here)
+        if action == studio.save and not name.strip():
+            continue  # empty: the session's own folder
+        with pytest.raises(KgarmentError, match="give a plain name"):
+            action(name)
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+
+
+def test_export_never_overwrites_without_a_second_press(studio, tmp_path):
+    from kgarment.design import load_design
+
+    exports = tmp_path / "runs" / "exports"
+    exports.mkdir(parents=True)
+    (exports / "notes.txt").write_text("mine")
+    (exports / "keep.npz").write_bytes(b"mine")
+    out = studio.export_a("notes.txt")  # a suffix is added, never swapped: notes.txt stays
+    assert out == exports / "notes.txt.npz" and (exports / "notes.txt").read_text() == "mine"
+    assert studio.export_a("keep") is None and (exports / "keep.npz").read_bytes() == b"mine"
+    assert "exists: press the button again" in last(studio)[0]
+    out = studio.export_a("keep.npz")  # the same file asked for again: replaced
+    assert out == exports / "keep.npz"
+    assert load_design(out, studio.state.n_faces).shape == (studio.state.n_faces,)
+
+
+def test_cli_refuses_a_remote_host_without_allow_remote(tmp_path):
+    bad = subprocess.run([sys.executable, "-m", "kgarment.cli", "studio", "--host", "0.0.0.0"], cwd=tmp_path,
+                         capture_output=True, text=True, check=False)
+    assert bad.returncode == 2 and "--allow-remote" in bad.stderr and "no authentication" in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1, bad.stderr

@@ -70,6 +70,14 @@ def fill_slider(page, label, value):
     box.press("Enter")
 
 
+def fill_text(page, label, value):
+    """Type into a text box (its label names the row, as with the sliders)."""
+    row = page.locator("label", has_text=label).locator("xpath=ancestor::div[contains(@class,'mantine-Flex-root')][1]")
+    box = row.locator("input, textarea").first
+    box.fill(str(value))
+    box.press("Enter")
+
+
 def fill(page, label, value):
     box = page.get_by_label(label, exact=True)
     box.fill(str(value))
@@ -190,6 +198,16 @@ def test_place_paint_save_in_the_browser(studio, tmp_path):
             page.get_by_text("session saved to").first.wait_for(timeout=10000)
             page.screenshot(path=shots / "3_saved.png")
             mark('saved')
+
+            # exports: a path that leaves the studio's folder is refused; a name lands in RUNS/exports
+            fill_text(page, "Export design A as", "../../escaped")
+            page.get_by_role("button", name="Export design A").click()
+            wait_for(lambda: "give a plain name" in studio.messages[-1][0], what="the refused export")
+            fill_text(page, "Export design A as", "mine")
+            page.get_by_role("button", name="Export design A").click()
+            exported = tmp_path / "runs" / "exports" / "mine.npz"
+            wait_for(exported.is_file, what="the exported design")
+            mark('exported')
         finally:
             browser.close()
 
@@ -199,6 +217,8 @@ def test_place_paint_save_in_the_browser(studio, tmp_path):
     from kgarment.design import load_design
     from kgarment.problem import load_problem
 
+    assert not any(tmp_path.parent.glob("escaped*")) and not any(tmp_path.glob("escaped*"))
+    assert np.array_equal(load_design(str(exported), len(faces)) > 0.5, st.design)
     names = [c.name for c in load_clutches(folder / "clutches.toml")]
     assert names == st.clutch_names() and "elbow_outer_R" in names and "clutch" in names
     design = load_design(str(folder / "design.npz"), len(faces)) > 0.5

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import sys
 import time
 
 from kgarment.cli.common import add_device, add_overrides, add_problem, integer, overrides
 from kgarment.errors import KgarmentError
+
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
 def cmd_studio(args) -> int:
@@ -15,10 +18,20 @@ def cmd_studio(args) -> int:
         raise KgarmentError("the studio needs viser: pip install -e '.[studio]'") from None
     from kgarment.studio import Studio, read_source
 
+    remote = args.host not in LOOPBACK
+    if remote and not args.allow_remote:
+        raise KgarmentError(f"--host {args.host} would serve the studio to other machines, and the studio has no "
+                            "authentication (anyone who reaches it can edit and run designs and write files under "
+                            f"{args.runs}); add --allow-remote to do it anyway")
     opened = read_source(args.problem).with_overrides(**overrides(args))
     if not args.quiet:
         print(opened.problem.describe())
     studio = Studio(opened, host=args.host, port=args.port, session=args.session, runs=args.runs, device=args.device)
+    if remote:
+        print(f"kgarment studio: WARNING: serving on {args.host} without authentication; anyone who reaches "
+              f"port {studio.server.get_port()} can use the studio", file=sys.stderr)
+    if studio.server.get_port() != args.port:
+        print(f"kgarment studio: port {args.port} is taken; serving on port {studio.server.get_port()} instead")
     print(f"kgarment studio: open {studio.url} in a browser (Ctrl-C stops the server)")
     try:
         while True:
@@ -39,9 +52,13 @@ def add_parsers(sub) -> None:
     add_overrides(sp)
     sp.description = ("Serve the studio page for PROBLEM (a problem file), RUN (a design run folder) or a studio "
                       "session folder; without one, the built-in three-motion shirt.")
-    sp.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1: this machine only)")
+    sp.add_argument("--host", default="127.0.0.1", help="address to serve on (default 127.0.0.1: this machine only; "
+                    "any other needs --allow-remote)")
+    sp.add_argument("--allow-remote", action="store_true", help="allow a --host that other machines reach (the "
+                    "studio has no authentication: anyone who reaches it can use it)")
     sp.add_argument("--port", type=integer(1, 65535), default=8080, help="port (default 8080)")
     sp.add_argument("--session", help="folder that Save writes the session to (default: the opened session)")
-    sp.add_argument("--runs", default="runs/studio", help="where optimisations started from the page write their "
-                    "run folders (default runs/studio)")
+    sp.add_argument("--runs", default="runs/studio", help="the one folder the page writes into (default "
+                    "runs/studio): optimisation run folders, exports (RUNS/exports) and sessions saved under a "
+                    "new name (RUNS/sessions); the page names files, never folders elsewhere")
     sp.set_defaults(func=cmd_studio)

@@ -34,7 +34,7 @@ from kgarment.studio.edit import Editor
 from kgarment.studio.optimise import Optimiser
 from kgarment.studio.panel import Panel
 from kgarment.studio.scene import Scene, garment_colors, garment_target
-from kgarment.studio.session import Opened, build_state, export_design, read_source, save_session
+from kgarment.studio.session import Opened, build_state, export_design, read_source, save_session, studio_path
 from kgarment.studio.settings import Settings
 from kgarment.studio.simulations import Simulations
 from kgarment.studio.state import StudioState
@@ -63,6 +63,8 @@ class Studio:
         self.settings.fit(self.state.base_garment.motion_names, self.state.problem.motions)
         self.messages: list[tuple[str, bool]] = []
         self._confirm_open: str | None = None
+        self._confirm_write: Path | None = None
+        self.files_root = Path(runs)
         self.edit = Editor(self)
         self.sims = Simulations(self, opened.compare)
         self.optimiser = Optimiser(self, self.sims, Path(runs))
@@ -224,11 +226,28 @@ class Studio:
             self.edit.dab(hit.face, hit.bary, start=event.phase == "start")
 
     # ----- files ------------------------------------------------------------------------
-    def save(self, folder: str | None = None) -> list[Path]:
-        """Save the session (problem, clutches, designs, attachments, settings, results)."""
-        target = Path(folder.strip()) if folder and folder.strip() else self.session_dir
+    def confirm_write(self, path: Path) -> bool:
+        """Whether the page may write ``path``: a new one, yes; an existing one only when the
+        same write is asked for twice in a row (the first time the page warns)."""
+        if path.exists() and self._confirm_write != path:
+            self._confirm_write = path
+            self.say(f"{path} exists: press the button again to replace it", notify=True)
+            return False
+        self._confirm_write = None
+        return True
+
+    def save(self, folder: str | None = None) -> list[Path] | None:
+        """Save the session (problem, clutches, designs, attachments, settings, results)
+        into its folder (``--session``, or the session opened), or a session named
+        ``folder`` under ``RUNS/sessions``; None when an existing one awaits confirmation."""
+        if folder and folder.strip():
+            target = studio_path(self.files_root / "sessions", folder, "session name")
+            if not self.confirm_write(target):
+                return None
+        else:
+            target = self.session_dir
         if target is None:
-            raise KgarmentError("give a session folder to save into")
+            raise KgarmentError("give a session name to save into")
         run = self.optimiser.run
         paths = save_session(self.state, target, settings=self.settings.to_dict(), compare=self.sims.design_b,
                              results=self.sims.to_json(), run=run.folder if run is not None else None)
@@ -267,10 +286,12 @@ class Studio:
         if opened.run is not None:
             self.guarded(self.optimiser.open, opened.run)
 
-    def export_a(self, path: str) -> Path:
-        """Write design A as a design NPZ (``kgarment simulate --design`` reads it)."""
-        if not path.strip():
-            raise KgarmentError("give a file name for the design (.npz)")
-        out = export_design(path.strip(), self.state.design, self.state.base_garment)
+    def export_a(self, name: str) -> Path | None:
+        """Write design A as a design NPZ (``kgarment simulate --design`` reads it) named
+        ``name`` under ``RUNS/exports``; None when an existing file awaits confirmation."""
+        out = studio_path(self.files_root / "exports", name, "export name", ".npz")
+        if not self.confirm_write(out):
+            return None
+        out = export_design(out, self.state.design, self.state.base_garment)
         self.say(f"design A written to {out}", notify=True)
         return out

@@ -31,7 +31,7 @@ from kgarment.problem import Problem, override
 from kgarment.studio.jobs import Job
 from kgarment.studio.page import Page
 from kgarment.studio.runs import RunHistory, check_compatible, read_run
-from kgarment.studio.session import export_design
+from kgarment.studio.session import export_design, studio_path
 from kgarment.studio.simulations import Simulations
 from kgarment.studio.state import StudioState
 
@@ -106,7 +106,8 @@ class Optimiser:
         page = self.page
         if self.running:
             raise KgarmentError("an optimisation is running; stop it first")
-        run = Path(folder) if folder else self.runs_root / time.strftime("studio-%Y%m%d-%H%M%S")
+        name = folder if folder and folder.strip() else time.strftime("studio-%Y%m%d-%H%M%S")
+        run = studio_path(self.runs_root, name, "run folder")
         if run.exists() and any(run.iterdir()):
             raise KgarmentError(f"run folder {run} exists and is not empty; choose another")
         inputs = RunInputs.of(page.state, max_iterations)
@@ -182,10 +183,12 @@ class Optimiser:
             self.page.say(f"design A is now {label} (undo restores the previous one)")
         self.page.refresh(scene=True)
 
-    def export_iteration(self, path: str) -> Path:
-        """Write the shown iteration as a design NPZ (``kgarment simulate --design`` reads it)."""
-        if not path.strip():
-            raise KgarmentError("give a file name for the design (.npz)")
-        out = export_design(path.strip(), self.shown_design(), self.page.state.base_garment, iteration=self.k)
+    def export_iteration(self, name: str) -> Path | None:
+        """Write the shown iteration as a design NPZ (``kgarment simulate --design`` reads it)
+        named ``name`` under ``RUNS/exports``; None when an existing file awaits confirmation."""
+        out = studio_path(self.runs_root / "exports", name, "export name", ".npz")
+        if not self.page.confirm_write(out):
+            return None
+        out = export_design(out, self.shown_design(), self.page.state.base_garment, iteration=self.k)
         self.page.say(f"iteration {self.k} written to {out}", notify=True)
         return out

@@ -9,6 +9,7 @@ imports the app or the viser panel.
 from __future__ import annotations
 
 import threading
+from pathlib import Path
 from typing import Protocol
 
 from kgarment.studio.settings import Settings
@@ -36,6 +37,10 @@ class Page(Protocol):
         """Bring parts of the page up to date: the 3D scene (``body`` too: the body mesh),
         the results table, the run panel, the controls that mirror the settings, the
         selected clutch's controls."""
+
+    def confirm_write(self, path: Path) -> bool:
+        """Whether ``path`` may be written: new, or asked for twice in a row (the first time
+        the page warns that it exists)."""
 
     def show_progress(self, job: str, text: str) -> None:
         """Progress text of a background job ("simulation" or "optimisation")."""

@@ -36,13 +36,14 @@ class Host(Page, Protocol):
     sims: Simulations
     optimiser: Optimiser
     session_dir: Path | None
+    files_root: Path
 
     def guarded(self, fn: Callable, *args, **kwargs): ...
     def redraw(self, body: bool = True) -> None: ...
     def play(self, seconds: float = 2.0, steps: int = 24) -> None: ...
-    def save(self, folder: str | None = None) -> list[Path]: ...
+    def save(self, folder: str | None = None) -> list[Path] | None: ...
     def open(self, path: str, force: bool = False) -> None: ...
-    def export_a(self, path: str) -> Path: ...
+    def export_a(self, name: str) -> Path | None: ...
 
 
 class Panel:
@@ -139,7 +140,8 @@ class Panel:
 
     def _optimise_tab(self, gui) -> None:
         o = self.s.optimiser
-        self.run_out = gui.add_text("New run folder", "", hint="empty: runs/studio/studio-<date>-<time>")
+        self.run_out = gui.add_text("New run folder", "", hint=f"a name under {o.runs_root}; "
+                                    "empty: studio-<date>-<time>")
         self.max_it = gui.add_number("Max iterations", 0, min=0, step=1, hint="0: the problem's setting")
         self._button(gui, "Start optimisation",
                      lambda: o.optimise(self.run_out.value.strip() or None, int(self.max_it.value) or None))
@@ -154,16 +156,19 @@ class Panel:
         self.run_info = gui.add_markdown("")
         self._button(gui, "Load iteration into design A", o.use_iteration)
         self._button(gui, "Use iteration as design B", lambda: o.use_iteration(as_b=True))
-        self.export_path = gui.add_text("Export iteration to", "design.npz")
+        self.export_path = gui.add_text("Export iteration as", "design.npz", hint=f"a name; written to "
+                                        f"{o.runs_root / 'exports'}")
         self._button(gui, "Export iteration", lambda: o.export_iteration(self.export_path.value))
 
     def _file_tab(self, gui) -> None:
         s = self.s
-        self.session_path = gui.add_text("Session folder", "")
+        self.session_path = gui.add_text("Save as session", "", hint=f"a name under {s.files_root / 'sessions'}; "
+                                         "empty: the session's own folder")
         self._button(gui, "Save session", lambda: s.save(self.session_path.value))
         self.open_path = gui.add_text("Open", "", hint="a problem file (.toml), a run folder or a session folder")
         self._button(gui, "Open", lambda: s.open(self.open_path.value))
-        self.export_a_path = gui.add_text("Export design A to", "design.npz")
+        self.export_a_path = gui.add_text("Export design A as", "design.npz", hint=f"a name; written to "
+                                          f"{s.files_root / 'exports'}")
         self._button(gui, "Export design A", lambda: s.export_a(self.export_a_path.value))
 
     # ----- callbacks --------------------------------------------------------------------
@@ -236,13 +241,12 @@ class Panel:
     def refresh_status(self) -> None:
         st = self.s.state
         cov, budget = 100 * st.coverage(), 100 * st.budget
-        over = " (over budget)" if cov > budget + 1e-9 else ""
+        over = " (over budget)" if round(cov, 1) > round(budget, 1) else ""  # as shown: 15.0% of 15% is not over
         self.coverage.content = f"**Reinforced: {cov:.1f}%** of the garment area; budget {budget:.0f}%{over}"
         saved = "unsaved changes" if st.dirty else "saved" if self.s.session_dir else "not saved yet"
+        where = f" (Save writes {self.s.session_dir})" if self.s.session_dir is not None else ""
         self.status.content = (f"**kgarment studio**: {st.base_garment.name}, {st.n_faces} faces, "
-                               f"{len(st.clutches)} clutches; reinforced {cov:.1f}% / {budget:.0f}%; {saved}")
-        if self.s.session_dir is not None and not self.session_path.value:
-            self.session_path.value = str(self.s.session_dir)
+                               f"{len(st.clutches)} clutches; reinforced {cov:.1f}% / {budget:.0f}%; {saved}{where}")
 
     def show_message(self, text: str, error: bool) -> None:
         self.message.content = ("**Error:** " if error else "") + text

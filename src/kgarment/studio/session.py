@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 import tomllib
 import zipfile
 from dataclasses import dataclass, field
@@ -252,12 +253,25 @@ def _toml_safe(d: dict) -> dict:
     return out
 
 
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
+
+
+def studio_path(root, name: str, what: str, suffix: str = "") -> Path:
+    """Where a file or folder the page names goes: ``root / name`` for a plain ``name``
+    (letters, digits, '.', '_', '-'; no folders, no '..'), with ``suffix`` appended when
+    missing.  The studio has no authentication, so the page never chooses where on the
+    disk it writes: only a name under the folder given on the command line."""
+    text = name.strip()
+    if not NAME.fullmatch(text) or ".." in text:
+        raise KgarmentError(f"{what} {name!r}: give a plain name (letters, digits, '.', '_', '-'); "
+                            f"the studio writes it under {root}")
+    return Path(root) / (text if not suffix or text.endswith(suffix) else text + suffix)
+
+
 def export_design(path, design: np.ndarray, garment: Garment, iteration: int | None = None) -> Path:
     """Write a design (m,) bool as an NPZ that ``kgarment simulate --design`` reads:
     design (m,) 1.0 / X_MIN, plus the garment's faces and rest vertices for reference."""
     path = Path(path)
-    if path.suffix != ".npz":
-        path = path.with_suffix(".npz")
     d = np.asarray(design, bool)
     if d.shape != (garment.n_faces,):
         raise KgarmentError(f"the design has {d.size} faces, the garment {garment.n_faces}")
