@@ -233,6 +233,7 @@ def progress_plot(run: Path, rows: list[dict]) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     it = [r["iteration"] for r in rows]
     fig, ax = plt.subplots(figsize=(7, 4), dpi=100)
@@ -246,6 +247,7 @@ def progress_plot(run: Path, rows: list[dict]) -> Path:
     ax2.plot(it, [100 * r["area"] for r in rows], ":", color="grey", label="area")
     ax2.set_ylabel("reinforced area (%)", color="grey")
     ax.legend(fontsize=7, loc="upper left")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.grid(alpha=0.3)
     fig.tight_layout()
     path = run / "progress.png"

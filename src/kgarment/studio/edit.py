@@ -70,7 +70,7 @@ class Editor:
                     st.move_clutch(self.selected, p)
                 else:
                     st.aim_clutch(self.selected, p)
-                page.say(f"clutch {self.selected}: {tool.split()[0]}d")
+                page.say(f"clutch {self.selected} {'moved' if tool == 'move clutch' else 'aimed'}")
             else:
                 name = nearest_clutch(st.strips(), p)
                 if name is not None:

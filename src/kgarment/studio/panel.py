@@ -231,6 +231,8 @@ class Panel:
             self.width.value = float(np.clip(c.width, *WIDTH_RANGE))
             self.prestrain.value = float(np.clip(c.prestrain, 0.8, 1.0))
             self.clip.value = bool(c.clip)
+        else:  # nothing selected (say, just deleted): no name left in the form; the sliders
+            self.cname.value = ""  # keep their values as the next clutch's defaults
         self.refresh_status()
 
     def clutch_defaults(self) -> dict[str, float | bool]:

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from kgarment.design import LoopState, load_design_history
 from kgarment.errors import KgarmentError
@@ -128,7 +129,7 @@ def metric_series(rows: Sequence[dict]) -> tuple[np.ndarray, dict[str, np.ndarra
     return it, out
 
 
-def progress_image(rows: Sequence[dict], width_px: int = 520, height_px: int = 300) -> np.ndarray:
+def progress_image(rows: Sequence[dict], width_px: int = 420, height_px: int = 360) -> np.ndarray:
     """(H, W, 3) uint8 picture of rho per motion and state against iteration (dashed: OFF)
     with the reinforced area share, like the run folder's progress.png (drawn on an Agg
     canvas of its own: no pyplot, safe in the page's threads)."""
@@ -145,13 +146,16 @@ def progress_image(rows: Sequence[dict], width_px: int = 520, height_px: int = 3
         ax2 = ax.twinx()
         ax2.plot(it, series["area %"], ":", color="grey")
         ax2.set_ylabel("reinforced area (%)", color="grey", fontsize=8)
-        ax2.tick_params(labelsize=7)
-        ax.legend(fontsize=6, loc="upper left")
+        ax2.tick_params(labelsize=8)
+        ax2.xaxis.set_major_locator(MaxNLocator(integer=True))
+        # below the axes, in two columns: readable at the panel's width, never over the curves
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2, frameon=False)
     else:
         ax.text(0.5, 0.5, "no iteration yet", ha="center", va="center", transform=ax.transAxes)
     ax.set_xlabel("iteration", fontsize=8)
     ax.set_ylabel("rho", fontsize=8)
-    ax.tick_params(labelsize=7)
+    ax.tick_params(labelsize=8)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # iterations are whole numbers
     ax.grid(alpha=0.3)
     fig.tight_layout()
     canvas.draw()
