@@ -25,6 +25,7 @@ from kgarment.body import Body
 from kgarment.clutch import ClutchSpec, ClutchStrip, save_clutches
 from kgarment.clutch.landmarks import body_landmarks
 from kgarment.design.beso import design_values
+from kgarment.design.control import Control, control_check
 from kgarment.design.evaluate import DesignEvaluation, Evaluator
 from kgarment.design.loads import load_chart
 from kgarment.design.loop import LoopState, initial_state, run_loop
@@ -152,6 +153,8 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
     folder stays resumable).  Returns the run with its final state, written paths and
     evaluation."""
     def after(st: LoopState) -> None:
+        if len(st.metrics) == 1 and dr.setup.objective == "active":
+            check_control(dr, st)
         if progress is not None:
             progress(st)
         if cancelled is not None and not st.done and cancelled():
@@ -167,6 +170,19 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
     equilibria = None if evaluation is None else {s.key: s.result for s in evaluation.states}
     paths = finish_run(dr.run, dr.setup, st, dr.body, dr.garment, list(dr.strips), k, equilibria) + paths
     return dataclasses.replace(dr, paths=tuple(paths), evaluation=evaluation)
+
+
+def check_control(dr: DesignRun, st: LoopState) -> list[Control]:
+    """After iteration 0: which motions the clutches can control at all
+    (:mod:`kgarment.design.control`), written to ``control.json``; a warning with what to
+    change for each one they cannot."""
+    controls = control_check(dr.setup, st.warm)
+    if controls:
+        atomic_write_text(dr.run / "control.json", json.dumps([c.to_json() for c in controls], indent=1))
+    for c in controls:
+        if not c.controllable:
+            log.warning("%s", c.advice())
+    return controls
 
 
 def evaluate_final(dr: DesignRun, iteration: int) -> tuple[DesignEvaluation, list[Path]]:

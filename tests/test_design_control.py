@@ -1,0 +1,36 @@
+"""A large motion: the simulator converges on it, and the design reports that the
+clutches cannot control it (issue 20 item 6, issue 19 item 7)."""
+
+from __future__ import annotations
+
+import json
+
+from kgarment.cli import main
+
+# a 120-degree overhead reach of the right arm (20 clavicle + 100 shoulder), the shirt's
+# back clutches, subdivision 0: the short sleeve slides off the rising arm
+REACH = """
+[motions]
+use = ["reach"]
+[motions.define.reach]
+rotations = [{ bone = "clavicle.R", axis = "-x", degrees = 20 }, { bone = "upperarm01.R", axis = "-x", degrees = 100 }]
+[garment]
+template = "short_sleeve_shirt"
+subdivision = 0
+"""
+
+
+def test_large_reach_converges_and_is_reported_uncontrollable(tmp_path, monkeypatch, capsys, caplog, anny_body):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.toml").write_text(REACH)
+    assert main(["simulate", "p.toml", "--clutches", "on", "--out", "sim"]) == 0  # converged (else exit 1)
+    assert "reach: converged" in capsys.readouterr().out
+    assert main(["-q", "design", "p.toml", "--out", "run", "--max-iterations", "1", "--no-evaluation"]) == 0
+    warned = caplog.text  # the warning is logged (the CLI's log handler writes it to stderr)
+    assert "motion reach: the clutches can hardly be felt in it" in warned and "clutches suggest" in warned
+    (c,) = json.loads((tmp_path / "run" / "control.json").read_text())
+    assert c["motion"] == "reach" and not c["controllable"] and c["ratio"] < 1.0
+    # the energies are the equilibria's: ON stores at least what OFF does
+    assert c["full_on_J"] >= c["full_off_J"] > c["plain_off_J"] > 0
+    row = json.loads((tmp_path / "run" / "metrics.json").read_text())[0]
+    assert not row["unconverged_states"]
