@@ -41,6 +41,7 @@ from kgarment.studio.state import StudioState
 
 log = logging.getLogger(__name__)
 MESSAGES_KEPT = 50
+ERROR_SECONDS = 15.0  # an error pop-up closes after this long (the status line keeps the message)
 T = TypeVar("T")
 
 
@@ -64,6 +65,7 @@ class Studio:
         self.messages: list[tuple[str, bool]] = []
         self._confirm_open: str | None = None
         self._confirm_write: Path | None = None
+        self._popups: dict = {}  # client id -> its last notification handle
         self.files_root = Path(runs)
         self.edit = Editor(self)
         self.sims = Simulations(self, opened.compare)
@@ -91,18 +93,23 @@ class Studio:
 
     # ----- the Page protocol: messages and refreshes -------------------------------------
     def say(self, text: str, error: bool = False, notify: bool = False) -> None:
-        """Show ``text`` in the page's status line; errors (and ``notify``) also pop up
-        as a notification (errors stay until closed)."""
+        """Show ``text`` in the page's status line; errors (and ``notify``) also pop up as
+        a notification, one at a time (a new one replaces the last; errors close after
+        ``ERROR_SECONDS``, the status line keeps the text)."""
         (log.warning if error else log.info)("studio: %s", text)
         self.messages.append((text, error))
         del self.messages[:-MESSAGES_KEPT]
         self.panel.show_message(text, error)
         if not (error or notify):
             return
-        for client in self.server.get_clients().values():
+        for cid, client in self.server.get_clients().items():
             try:
-                client.add_notification("Error" if error else "kgarment", text, color="red" if error else None,
-                                        auto_close_seconds=None if error else 4.0)
+                old = self._popups.pop(cid, None)
+                if old is not None:  # one pop-up at a time: a new message replaces the last
+                    old.remove()
+                self._popups[cid] = client.add_notification(
+                    "Error" if error else "kgarment", text, color="red" if error else None,
+                    auto_close_seconds=ERROR_SECONDS if error else 4.0)
             except Exception:
                 log.debug("notification not delivered", exc_info=True)
 
