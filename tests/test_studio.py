@@ -342,3 +342,27 @@ def test_strain_colours_and_glb():
     assert (c[0] == view.ONLY_A).all() and (c[1] == view.ONLY_B).all() and (c[2] == view.BOTH).all()
     assert view.glb_bytes(V, F, np.zeros((len(F), 3), np.uint8))[:4] == b"glTF"
     assert "J/m" in view.legend("energy density", 0.0, 2.0)
+
+
+def test_energy_view_shares_one_scale_for_on_and_off(state):
+    """ON and OFF of one motion are drawn on one colour scale (with a scale each, a garment
+    storing 10x less OFF looked the same as ON)."""
+    from types import SimpleNamespace
+
+    from kgarment.studio.scene import garment_colors
+    from kgarment.studio.settings import Settings
+
+    m = state.n_faces
+    motion = state.problem.motions[0]
+    on = np.linspace(0.0, 10.0, m)
+    a = SimpleNamespace(density={(motion, "on"): on, (motion, "off"): on / 10}, garment_x={},
+                        states=lambda: {"on", "off"})
+    s = Settings()
+    s.mode, s.motion = "energy density", motion
+    colours = {}
+    for clutches in ("on", "off"):
+        s.clutches_on = clutches == "on"
+        colours[clutches], legend = garment_colors(state, s, state.base_garment.rest_vertices, a=a, design_b=None,
+                                                   run=None, k=0)
+        assert f"{np.percentile(on, 99):.3g}" in legend  # the ON maximum, for OFF too
+    assert colours["off"].astype(int).sum() < colours["on"].astype(int).sum()  # OFF is darker

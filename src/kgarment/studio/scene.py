@@ -62,8 +62,11 @@ def garment_colors(state: StudioState, settings: Settings, x: np.ndarray, *, a: 
     if s.mode == "energy density":
         key = (s.motion, shown_state(s, a))
         if a is not None and key in a.density:
-            c, lo, hi = view.scalar_colors(a.density[key], vmin=0.0)
-            return c, view.legend("energy density", lo, hi, note=f"design A, {key[0]}, clutches {key[1]}")
+            # one scale for ON and OFF of a motion (each with its own, they looked alike)
+            hi = max(float(np.percentile(v, 99)) for (m, _), v in a.density.items() if m == key[0])
+            c, lo, hi = view.scalar_colors(a.density[key], vmin=0.0, vmax=hi if hi > 0 else None)
+            return c, view.legend("energy density", lo, hi, note=f"design A, {key[0]}, clutches {key[1]}; "
+                                  "one scale for the motion's ON and OFF")
         note = "no simulation of design A for this motion and clutch state: simulate first (showing the design)"
         return plain, view.legend("design", note=note)
     if s.mode == "compare":
