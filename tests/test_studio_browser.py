@@ -170,17 +170,18 @@ def test_place_paint_save_in_the_browser(studio, tmp_path):
             after_click = st.coverage()
             mark('click paint')
             aim(studio, reported, far[-1])
+            client = next(iter(studio.server.get_clients().values()))
+            cam_before = np.array(client.camera.position)
             page.mouse.move(*centre)
             page.mouse.down()
             for k in range(1, 7):
                 page.mouse.move(centre[0] + 12 * k, centre[1] + 4 * k)
                 time.sleep(0.05)
             page.mouse.up()
-            dragged = True
-            try:
-                wait_for(lambda: st.coverage() > after_click, timeout=5, what="paint by a drag")
-            except AssertionError:
-                dragged = False  # drags are best effort in a software-rendered canvas; reported below
+            wait_for(lambda: st.coverage() > after_click, timeout=15, what="paint by a drag")
+            dragged = True  # click and drag both paint (two testers found only one of them working)
+            # the paint drag does not orbit the camera as well
+            assert np.linalg.norm(np.array(client.camera.position) - cam_before) < 1e-6
             page.get_by_role("tab", name="View").click()
             mark('drag')
             page.screenshot(path=shots / "2_painted.png")
