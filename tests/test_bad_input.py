@@ -209,11 +209,13 @@ BAD_MASKS = [
 ]
 
 
-@pytest.mark.parametrize("mask, message", BAD_MASKS, ids=["float", "one face", "empty", "strings"])
+@pytest.mark.parametrize("mask, message", BAD_MASKS + [(None, "holds no array")],
+                         ids=["float", "one face", "empty", "strings", "empty npz"])
 def test_bad_garment_mask(mask, message, tmp_path, monkeypatch, capsys, anny_body):
     monkeypatch.chdir(tmp_path)
-    np.save(tmp_path / "mask.npy", mask)
-    (tmp_path / "p.toml").write_text('[garment]\nmask = "mask.npy"\nsubdivision = 0\n[motions]\nuse = ["arms_raise"]\n')
+    name = "mask.npz" if mask is None else "mask.npy"
+    np.savez(tmp_path / name) if mask is None else np.save(tmp_path / name, mask)
+    (tmp_path / "p.toml").write_text(f'[garment]\nmask = "{name}"\nsubdivision = 0\n[motions]\nuse = ["arms_raise"]\n')
     rc, _, err = run_cli(["render", "p.toml", "--out", "pics"], capsys)
     assert_one_line(rc, err, message)
 

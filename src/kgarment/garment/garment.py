@@ -191,9 +191,13 @@ def load_face_mask(path, n_faces: int) -> np.ndarray:
             a = np.load(path)
         elif path.suffix == ".npz":
             with np.load(path) as z:
+                if not z.files:
+                    raise KgarmentError(f"face mask {path} holds no array; save the mask as one array")
                 a = z[z.files[0]]
         else:
             a = np.loadtxt(path, dtype=np.int64, ndmin=1)
+    except KgarmentError:
+        raise
     except Exception as exc:
         raise KgarmentError(f"cannot read face mask {path}: {exc}") from None
     if a.dtype == bool:
