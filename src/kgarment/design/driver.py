@@ -86,6 +86,7 @@ def open_run(problem: Problem | None, run, *, resume: bool = False, force: bool 
     run = check_run_folder(run, force=force, resume=resume)
     if resume:
         problem = load_problem(run / "problem.toml")
+        resumed = load_checkpoint(run)  # a damaged checkpoint is reported before the slow build
     custom_garment = garment is not None and not resume
     body = build_body(problem) if body is None else body
     garment = build_garment(problem, body) if garment is None else garment
@@ -97,7 +98,7 @@ def open_run(problem: Problem | None, run, *, resume: bool = False, force: bool 
     if not resume:
         replace_folder(run, lambda tmp: write_inputs(tmp, problem, body, garment, specs, custom_garment, home=run),
                        "run")
-    st = load_checkpoint(run) if resume else initial_state(setup)
+    st = resumed if resume else initial_state(setup)
     return DesignRun(run, problem, body, garment, strips, setup, st)
 
 
