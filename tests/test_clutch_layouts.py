@@ -92,3 +92,22 @@ def test_suggestions_sit_on_high_strain_and_follow_it(anny_body):
         mid = strip.vertices[strip.centerline[len(strip.centerline) // 2]]
         near = np.linalg.norm(cent - mid, axis=1) < 0.03
         assert best[near].mean() > np.percentile(best, 75)
+
+
+def test_suggestions_take_the_motions_in_turn(anny_body):
+    """Clutch k sits where motion k (round the motions) stretches the garment most, so every
+    motion gets a clutch of its own (greedy over all motions together gave the one that
+    stretches most every clutch)."""
+    from kgarment.clutch.suggest import principal_stretch, suggest_clutches
+
+    g = make_garment(anny_body, "short_sleeve_shirt", 0)
+    motions = ["arms_forward", "bend_forward"]
+    specs = suggest_clutches(g, motions=motions, count=2, length=0.08)
+    assert len(specs) == 2
+    cent = g.rest_vertices[g.faces].mean(1)
+    for spec, motion in zip(specs, motions):
+        s = principal_stretch(g.rest_vertices, g.vertices(motion), g.faces).stretch
+        strip = build_clutch(spec, g.rest_vertices, g.faces)
+        mid = strip.vertices[strip.centerline[len(strip.centerline) // 2]]
+        near = np.linalg.norm(cent - mid, axis=1) < 0.03
+        assert s[near].mean() > np.percentile(s, 90), motion

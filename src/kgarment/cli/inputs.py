@@ -72,7 +72,7 @@ def cmd_clutches(args) -> int:
     body = build_body(p)
     garment = build_garment(p, body)
     if args.action == "suggest":
-        specs = suggest_clutches(garment, count=args.count, length=args.length)
+        specs = suggest_clutches(garment, motions=p.motions, count=args.count, length=args.length)
         strips = [build_clutch(s, garment.rest_vertices, garment.faces) for s in specs]
         name = "suggested"
     else:
@@ -91,6 +91,15 @@ def cmd_clutches(args) -> int:
         a, b = c.vertices[c.centerline[0]], c.vertices[c.centerline[-1]]
         print(f"  {c.name:18s} {100 * c.length:5.1f} cm x {100 * c.width:.1f} cm  from {a.round(3)} to {b.round(3)}")
     print(f"wrote {cfile} (portable: rest coordinates) and {png}")
+    if args.action == "suggest" and not args.no_check and strips:
+        from kgarment.design.control import clutch_control, control_table
+        from kgarment.design.setup import setup_from_problem
+
+        print("can each clutch be felt? fully reinforced garment, energy change with only that clutch ON over the "
+              "plain garment's energy (* at least 1x; the paper's shirt motions reach 15-34x with all ON):")
+        setup = setup_from_problem(p, body, garment, strips, "evaluate", args.device, "active")
+        for line in control_table(clutch_control(setup, [c.name for c in strips])):
+            print("  " + line)
     return 0
 
 
@@ -121,8 +130,11 @@ def add_parsers(sub) -> None:
                     "suggest: propose clutches over the most stretched spots")
     add_problem(sp)
     add_device(sp)
+    add_overrides(sp)
     sp.add_argument("--count", type=integer(1, 64), default=3, help="suggest: number of clutches (default 3)")
     sp.add_argument("--length", type=number(0.01, 1.0), default=0.10, help="suggest: clutch length in metres (default 0.10)")
     sp.add_argument("--out", default="runs/clutches", help="output folder (default runs/clutches)")
     sp.add_argument("--force", action="store_true", help="overwrite an existing clutch file")
+    sp.add_argument("--no-check", action="store_true", help="suggest: skip simulating whether each suggested "
+                    "clutch can be felt in each motion")
     sp.set_defaults(func=cmd_clutches)

@@ -2,9 +2,11 @@
 
 The paper placed clutches by hand over high-strain areas. We measure the strain of the
 *unreinforced* garment following the skin (its skin-tight state in each motion, which is
-where plain stretch cloth goes), pick the most stretched spots greedily with a minimum
-separation, and align each clutch with the principal stretch direction there. The result
-is a starting point for the designer to edit.
+where plain stretch cloth goes), pick the most stretched spots of each motion in turn with
+a minimum separation, and align each clutch with the principal stretch direction there.
+Whether a suggested clutch can be felt in a motion is then checked by simulation
+(:func:`kgarment.design.control.clutch_control`, printed by ``kgarment clutches suggest``).
+The result is a starting point for the designer to edit.
 """
 
 from __future__ import annotations
@@ -54,7 +56,10 @@ def principal_stretch(rest: np.ndarray, deformed: np.ndarray, faces: np.ndarray)
 
 def suggest_clutches(garment: Garment, motions=None, count: int = 3, length: float = 0.10,
                      width: float = 0.01, separation: float = 0.10, smoothing: float = 0.03) -> list[ClutchSpec]:
-    """Up to ``count`` clutch specs centred on the most stretched spots (metres throughout).
+    """Up to ``count`` clutch specs centred on the most stretched spots (metres throughout),
+    taken in turn per motion: the first clutch at the first motion's most stretched spot,
+    the second at the second motion's, and so on round the motions, so every motion gets a
+    clutch where it stretches the garment when ``count`` >= the number of motions.
 
     motions : names of the garment's motions to consider (default: all).
     separation : minimum distance between suggested clutch centres.
@@ -65,39 +70,48 @@ def suggest_clutches(garment: Garment, motions=None, count: int = 3, length: flo
     cent = V[F].mean(axis=1)
     area = garment.face_areas()
     stretches = [principal_stretch(V, garment.vertices(m), F) for m in motions]
-    S = np.stack([s.stretch for s in stretches])  # (k, m)
-    best_motion = np.argmax(S, axis=0)
-    score = S.max(axis=0) - 1.0
-    # tensors s d d^T for averaging directions without sign ambiguity
-    D = np.stack([s.direction for s in stretches])[best_motion, np.arange(len(F))]
-    T = (np.maximum(score, 0) * area)[:, None, None] * D[:, :, None] * D[:, None, :]
     tree = cKDTree(cent)
     nbrs = tree.query_ball_point(cent, smoothing)
-    smooth = np.array([np.average(score[n], weights=area[n]) for n in nbrs])
-    far_from_edge = ~garment.attached
+    ok = _away_from_edges(garment, tree, length)
+    topo = MeshTopology(V, F)
+    ranked = []  # per motion: faces by smoothed stretch, best first, and the motion's tensors
+    for st in stretches:
+        score = st.stretch - 1.0
+        # tensors s d d^T for averaging directions without sign ambiguity
+        T = (np.maximum(score, 0) * area)[:, None, None] * st.direction[:, :, None] * st.direction[:, None, :]
+        smooth = np.array([np.average(score[n], weights=area[n]) for n in nbrs])
+        order = [int(f) for f in np.argsort(-smooth) if smooth[f] > 0 and ok[f]]
+        ranked.append((order, T))
+    specs: list[ClutchSpec] = []
+    taken: list[np.ndarray] = []
+    cursor = [0] * len(motions)
+    while len(specs) < count and any(c < len(order) for c, (order, _) in zip(cursor, ranked)):
+        for k, (order, T) in enumerate(ranked):
+            if len(specs) >= count:
+                break
+            while cursor[k] < len(order) and any(np.linalg.norm(cent[order[cursor[k]]] - c) < separation
+                                                 for c in taken):
+                cursor[k] += 1
+            if cursor[k] >= len(order):
+                continue
+            f = order[cursor[k]]
+            _, v = np.linalg.eigh(T[nbrs[f]].sum(axis=0))
+            d = v[:, 2]
+            # walk half the length backwards on the surface to find the start
+            back = trace_path(V, F, f, np.full(3, 1 / 3), -d, 0.5 * length, topology=topo, clip=True)
+            start, fwd = back.points[-1], -back.directions[-1]
+            taken.append(cent[f])
+            specs.append(ClutchSpec(f"suggested{len(specs)}", tuple(map(float, start)), tuple(map(float, fwd)),
+                                    length, width, clip=True))
+    return specs
+
+
+def _away_from_edges(garment: Garment, tree: cKDTree, length: float) -> np.ndarray:
+    """(m,) bool: faces neither attached nor within half a clutch length of an opening."""
+    ok = ~garment.attached
     boundary = np.zeros(garment.n_vertices, bool)
     for loop in garment.loops.values():
         boundary[loop] = True
-    near_boundary = tree.query_ball_point(V[boundary], length / 2)
-    ok = far_from_edge.copy()
-    for n in near_boundary:
+    for n in tree.query_ball_point(garment.rest_vertices[boundary], length / 2):
         ok[n] = False
-    topo = MeshTopology(V, F)
-    specs = []
-    order = np.argsort(-smooth)
-    taken = []
-    for f in order:
-        if len(specs) >= count or smooth[f] <= 0:
-            break
-        if not ok[f] or any(np.linalg.norm(cent[f] - c) < separation for c in taken):
-            continue
-        Tm = T[nbrs[f]].sum(axis=0)
-        w, v = np.linalg.eigh(Tm)
-        d = v[:, 2]
-        # walk half the length backwards on the surface to find the start
-        back = trace_path(V, F, int(f), np.full(3, 1 / 3), -d, 0.5 * length, topology=topo, clip=True)
-        start, fwd = back.points[-1], -back.directions[-1]
-        taken.append(cent[f])
-        specs.append(ClutchSpec(f"suggested{len(specs)}", tuple(map(float, start)), tuple(map(float, fwd)),
-                                length, width, clip=True))
-    return specs
+    return ok

@@ -78,3 +78,61 @@ def control_check(setup: DesignSetup, warm: dict[str, np.ndarray] | None = None)
     plain = solve_states(setup.model, np.full(len(setup.areas), X_MIN), [s for _, s in offs], options=setup.solver)
     energy = {k: r.total_energy for (k, _), r in zip(keyed, full)}
     return [Control(m, energy[(m, "on")], energy[(m, "off")], r.total_energy) for ((m, _), _), r in zip(offs, plain)]
+
+
+@dataclass(frozen=True)
+class ClutchControl:
+    """One clutch in one motion: the fully reinforced garment's energy (J) with only this
+    clutch ON, against all OFF, over the plain garment's energy with all OFF."""
+
+    motion: str
+    clutch: str
+    only_on_J: float
+    full_off_J: float
+    plain_off_J: float
+
+    @property
+    def ratio(self) -> float:
+        return (self.only_on_J - self.full_off_J) / max(self.plain_off_J, 1e-12)
+
+    @property
+    def controls(self) -> bool:
+        return self.ratio >= UNCONTROLLABLE
+
+
+def clutch_control(setup: DesignSetup, names: list[str]) -> list[ClutchControl]:
+    """Per motion of ``setup`` and clutch (``names``, in the model's order): the
+    :class:`Control` screen with that clutch alone switched ON (one solve per motion and
+    clutch, plus the garment fully reinforced and plain with all OFF)."""
+    from kgarment.sim import SimState
+
+    k = setup.n_clutches
+    out = []
+    for motion, m in setup.motions.items():
+        states = [SimState.create(m, np.zeros(k), name=f"{motion}[off]")]
+        states += [SimState.create(m, np.eye(k)[j], name=f"{motion}[only {names[j]}]") for j in range(k)]
+        full = solve_states(setup.model, np.ones(len(setup.areas)), states, options=setup.solver)
+        (plain,) = solve_states(setup.model, np.full(len(setup.areas), X_MIN), states[:1], options=setup.solver)
+        out += [ClutchControl(motion, names[j], full[j + 1].total_energy, full[0].total_energy, plain.total_energy)
+                for j in range(k)]
+    return out
+
+
+def control_table(rows: list[ClutchControl]) -> list[str]:
+    """Lines: per motion and clutch the ratio (* controls it), then per motion the clutches
+    that control it or what to change."""
+    clutches = list(dict.fromkeys(r.clutch for r in rows))
+    motions = list(dict.fromkeys(r.motion for r in rows))
+    by = {(r.motion, r.clutch): r for r in rows}
+    lines = [f"{'motion':22s} " + " ".join(f"{c[:14]:>15s}" for c in clutches)]
+    for m in motions:
+        lines.append(f"{m[:22]:22s} " + " ".join(
+            f"{by[(m, c)].ratio:14.3g}{'*' if by[(m, c)].controls else ' '}" for c in clutches))
+    for m in motions:
+        ok = [c for c in clutches if by[(m, c)].controls]
+        lines.append(f"{m}: controlled by {', '.join(ok)}" if ok else
+                     f"{m}: NO suggested clutch can be felt in it (each changes the fully reinforced garment's "
+                     f"energy by less than {UNCONTROLLABLE:g}x the plain garment's): the motion does not stretch the "
+                     "garment across any of them; add clutches (--count), attach the garment where the motion "
+                     "pulls it, or leave the motion out")
+    return lines
