@@ -153,7 +153,7 @@ def test_clutches_show_and_suggest(tmp_path, anny_body):
 
     assert [s.name for s in load_clutches(tmp_path / "c" / "suggested.toml")] == ["suggested0"]
     # elbow flexion stretches the sleeve over the elbow, where the clutch goes: it is felt
-    assert "arm_flexion: controlled by suggested0" in out
+    assert "arm_flexion: can be felt through suggested0" in out
     rc, _, err = _cli(["clutches", "show", "p.toml", "--out", "c"], tmp_path)
     assert rc == 2 and "use --force" in err
 

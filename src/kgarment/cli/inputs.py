@@ -92,11 +92,12 @@ def cmd_clutches(args) -> int:
         print(f"  {c.name:18s} {100 * c.length:5.1f} cm x {100 * c.width:.1f} cm  from {a.round(3)} to {b.round(3)}")
     print(f"wrote {cfile} (portable: rest coordinates) and {png}")
     if args.action == "suggest" and not args.no_check and strips:
+        from kgarment.constants import UNCONTROLLABLE
         from kgarment.design.control import clutch_control, control_table
         from kgarment.design.setup import setup_from_problem
 
-        print("can each clutch be felt? fully reinforced garment, energy change with only that clutch ON over the "
-              "plain garment's energy (* at least 1x; the paper's shirt motions reach 15-34x with all ON):")
+        print("can each clutch be felt? the fully reinforced garment's energy change with only that clutch ON "
+              f"(* at least {100 * UNCONTROLLABLE:g}%; the paper's shirt motions: 1-3% with all three ON):")
         setup = setup_from_problem(p, body, garment, strips, "evaluate", args.device, "active")
         for line in control_table(clutch_control(setup, [c.name for c in strips])):
             print("  " + line)
