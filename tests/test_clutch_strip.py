@@ -120,7 +120,7 @@ def test_too_wide_strip_is_an_error(sheet, prism):
     assert abs(s.vertices[2 * len(s.centerline):, 1] - 0.001).max() < 1e-12
     V, F, topo = prism
     with pytest.raises(ClutchError, match="clutch 'cuff' is wider than the garment"):
-        build_clutch(ClutchSpec("cuff", prism_point(0, 0.29, R, SIDES), [1, 0, 0], 0.05,
+        build_clutch(ClutchSpec("cuff", prism_point(0, 0.29, R, SIDES), [1, 0, 0], 0.06,
                                 width=0.03), V, F, topo)
 
 

@@ -104,7 +104,7 @@ def test_unknown_experiment_is_a_one_line_error(tmp_path):
 
 @pytest.mark.timeout(900)
 def test_reproduce_tiny_sleeve(tmp_path, anny_body):
-    exps = "arm_flexion,sleeve_two_motions"
+    exps = "arm_extension,sleeve_two_motions"
     rc, out, err = _cli(["reproduce", "--resolution", "tiny", "--experiments", exps, "--out", "rep"], tmp_path)
     assert rc == 0, err
     rep = tmp_path / "rep"
@@ -122,16 +122,16 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
                 assert abs(r["area"] - e["budget"]) < 0.01
     cross = doc["cross"]["sleeve"]
     assert set(cross["rho_on"]) == {"arm_flexion.right", "arm_extension.right"}
-    assert set(cross["rho_on"]["arm_flexion.right"]) == {"arm_flexion.right", "all"}
+    assert set(cross["rho_on"]["arm_flexion.right"]) == {"arm_extension.right", "all"}
     # the multi-motion design's column is its own evaluation
     assert cross["rho_on"]["arm_extension.right"]["all"] == pytest.approx(
         doc["experiments"]["sleeve_two_motions"]["evaluations"]["ours"]["rho"]["arm_extension.right"]["on"])
     # the machine-readable summary: per experiment ours and manual, and the targets
     summary = json.loads((rep / "results.json").read_text())
     assert summary["resolution"] == "tiny" and set(summary["experiments"]) == set(exps.split(","))
-    flex = summary["experiments"]["arm_flexion"]["ours"]
-    assert set(flex) == {"rho", "parts", "clutch_ends_supported", "clutch_ends", "clutches"}
-    assert set(flex["clutches"]["elbow_outer.R"]) == {"share", "tension_N"}
+    ext = summary["experiments"]["arm_extension"]["ours"]
+    assert set(ext) == {"rho", "parts", "clutch_ends_supported", "clutch_ends", "clutches"}
+    assert set(ext["clutches"]["elbow_inner.R"]) == {"share", "tension_N"}
     assert {"every_clutch_loaded", "clutch_ends_supported", "one_part", "single_on_off",
             "beats_manual"} <= set(summary["targets"])
     assert all(isinstance(v, bool) for v in summary["targets"].values())

@@ -12,17 +12,17 @@ LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
 
 def cmd_studio(args) -> int:
+    remote = args.host not in LOOPBACK
+    if remote and not args.allow_remote:
+        raise KgarmentError(f"--host {args.host} would serve the studio to other machines, and the studio has no "
+                            "authentication (anyone who reaches it can edit and run designs and write files under "
+                            f"{args.runs}); add --allow-remote to do it anyway")
     try:
         import viser  # noqa: F401
     except ImportError:
         raise KgarmentError("the studio needs viser: pip install -e '.[studio]'") from None
     from kgarment.studio import Studio, read_source
 
-    remote = args.host not in LOOPBACK
-    if remote and not args.allow_remote:
-        raise KgarmentError(f"--host {args.host} would serve the studio to other machines, and the studio has no "
-                            "authentication (anyone who reaches it can edit and run designs and write files under "
-                            f"{args.runs}); add --allow-remote to do it anyway")
     opened = read_source(args.problem).with_overrides(**overrides(args))
     if not args.quiet:
         print(opened.problem.describe())
