@@ -91,25 +91,18 @@ def _empty(path: Path) -> bool:
     return path.is_dir() and not any(path.iterdir())
 
 
-def check_replaceable(path, force: bool, flag: str = "--force", hint: str = "") -> Path:
+def check_replaceable(path, force: bool, hint: str = "use --force to replace it") -> Path:
     """Check, before any work, that the output folder ``path`` can be written: missing, empty,
     or (with ``force``) a folder kgarment created.  Anything else -> KgarmentError, nothing
     touched: a file, a folder of other files (kgarment never deletes what it did not create),
-    a parent that is not a folder."""
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise KgarmentError(f"{path} is a file, not a folder; give another output folder")
-    parent = next((q for q in [path, *path.parents] if q.exists()), Path("."))
-    if not parent.is_dir():
-        raise KgarmentError(f"cannot create {path}: {parent} is a file")
-    if not os.access(parent, os.W_OK):
-        raise KgarmentError(f"cannot write into {parent} (permission denied)")
+    a parent that is not a writable folder.  ``hint``: what to do about an existing one."""
+    path = check_output_folder(path, "output folder")
     if path.is_dir() and not _empty(path):
         if not owned(path):
             raise KgarmentError(f"{path} exists and holds files kgarment did not write; it is never replaced, "
                                 "give another output folder")
         if not force:
-            raise KgarmentError(f"output folder {path} exists; {hint or 'use ' + flag + ' to replace it'}")
+            raise KgarmentError(f"output folder {path} exists; {hint}")
     return path
 
 
@@ -146,11 +139,7 @@ def check_output_folder(path, flag: str = "--out") -> Path:
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise KgarmentError(f"{flag} {path} is a file, not a folder")
-    parent = next((q for q in [path, *path.parents] if q.exists()), Path("."))
-    if not parent.is_dir():
-        raise KgarmentError(f"{flag} {path}: {parent} is a file, not a folder")
-    if not os.access(parent, os.W_OK):
-        raise KgarmentError(f"{flag} {path}: cannot write into {parent} (permission denied)")
+    _check_parent(path, [path, *path.parents], flag)
     return path
 
 
@@ -160,12 +149,18 @@ def check_output_file(path, flag: str) -> Path:
     path = Path(path)
     if path.is_dir():
         raise KgarmentError(f"{flag} {path} is a folder; give a file name")
-    parent = next((q for q in path.parents if q.exists()), Path("."))
+    _check_parent(path, path.parents, flag)
+    return path
+
+
+def _check_parent(path: Path, candidates, flag: str) -> None:
+    """The first existing one of ``candidates`` (``path``'s folder and its parents) must be a
+    writable folder."""
+    parent = next((q for q in candidates if q.exists()), Path("."))
     if not parent.is_dir():
         raise KgarmentError(f"{flag} {path}: {parent} is a file, not a folder")
     if not os.access(parent, os.W_OK):
         raise KgarmentError(f"{flag} {path}: cannot write into {parent} (permission denied)")
-    return path
 
 
 def load_npz(path, what: str, keys=()) -> dict:

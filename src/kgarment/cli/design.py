@@ -5,8 +5,6 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-import numpy as np
-
 from kgarment.cli.common import (
     MAX_ITERATIONS,
     SUBDIVISION,
@@ -56,8 +54,9 @@ def print_summary(dr, seconds: float) -> None:
     row = st.metrics[-1]
     print(f"\n{len(st.metrics)} iterations in {seconds:.0f} s; last iteration {rho_line(row, list(dr.setup.motions))}")
     if dr.evaluation is not None:
-        with np.load(dr.run / "final" / "design.npz") as z:
-            k = int(z["iteration"])
+        from kgarment.design.run import final_iteration
+
+        k = final_iteration(dr.run)
         print(f"final design: iteration {k} (the best objective at the target area), evaluated like "
               f"kgarment evaluate {dr.run}:")
         print_evaluation(dr.evaluation)

@@ -174,7 +174,7 @@ def _motions(m: dict, body: BodySpec) -> tuple[tuple[Motion, ...], tuple[str, ..
     user = tuple(_user_motion(k, v) for k, v in define.items())
     default = [k for k, _ in body.meshes] if body.model == "meshes" else DEFAULT_MOTIONS
     use = m.get("use", default)
-    if not isinstance(use, list) and not isinstance(use, tuple) or not all(isinstance(u, str) for u in use):
+    if not isinstance(use, (list, tuple)) or not all(isinstance(u, str) for u in use):
         raise KgarmentError(f"[motions] use = {use!r} must be a list of motion names, e.g. use = [\"arms_raise\"]")
     names = _check_motions(tuple(use), body, MotionLibrary({u.name: u for u in user}))
     return user, names
