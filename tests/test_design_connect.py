@@ -109,3 +109,34 @@ def test_no_clutches_no_change():
     solid = c[:, 0] > 0.05
     out = connect_design(solid, c[:, 0], areas, 0.2, face_adjacency(f), [], held)
     np.testing.assert_array_equal(out, solid)
+
+
+def test_a_clutch_held_only_by_an_edge_the_proposal_misses_is_joined_in():
+    """A clutch near the right held edge while BESO proposes only the left half: the path
+    from each of its ends to the edge is joined to the rest, not dropped as an island."""
+    v, f, c, areas, held = strip()
+    ends = [ends_at(c, 0.08, 0.12)]
+    left = (c[:, 0] < -0.05) & (np.abs(c[:, 1]) < 0.02)
+    alpha = np.where(left, 1.0, 0.1) - 0.01 * np.abs(c[:, 1])
+    target = areas[left].sum() / areas.sum()
+    out = connect_design(left, alpha, areas, target, face_adjacency(f), ends, held)
+    assert all(a and b for a, b in clutch_end_support(out, ends))
+    assert islands(f, out, links=ends) == 1
+
+
+def test_any_proposal_comes_out_in_one_part_holding_every_clutch_at_the_target_area():
+    """Invariant over random proposals and rankings: one part counting clutches as links,
+    every clutch end on reinforcement, the target area met to within a few faces."""
+    v, f, c, areas, held = strip(41, 15)
+    adj = face_adjacency(f)
+    ends = [ends_at(c, -0.10, -0.03, 0.02), ends_at(c, 0.02, 0.11, -0.02), ends_at(c, -0.02, 0.05, 0.03)]
+    rng = np.random.default_rng(7)
+    for _ in range(12):
+        smooth = np.sin(rng.uniform(5, 40) * c[:, 0] + rng.uniform(0, 6)) * np.cos(rng.uniform(5, 60) * c[:, 1])
+        alpha = smooth + 0.05 * rng.random(len(f))
+        target = rng.uniform(0.15, 0.35)
+        proposal = alpha >= np.quantile(alpha, 1.0 - target)
+        out = connect_design(proposal, alpha, areas, target, adj, ends, held)
+        assert all(a and b for a, b in clutch_end_support(out, ends))
+        assert islands(f, out, links=ends, adjacency=adj) == 1
+        assert abs(areas[out].sum() / areas.sum() - target) < 4 * areas.max() / areas.sum()
