@@ -194,7 +194,7 @@ def _svg(path):
 
     polys = {el.get("id"): pts(el) for el in root.iterfind(".//s:polygon", ns) if el.get("id")}
     circles = [(el.get("data-anchor"), np.array([float(el.get("cx")), H - float(el.get("cy"))]))
-               for el in root.iterfind(".//s:circle", ns)]
+               for el in root.iterfind(".//s:circle", ns) if el.get("data-anchor")]  # not the legend's
     return polys, circles
 
 

@@ -8,7 +8,12 @@ Marks on a patch: its label and area; an "UP" arrow; a snap-button mark at every
 anchor that lies on it (drawn by the writers as a circle with a cross); the clutch centre line; notches where its
 edge runs along a garment boundary loop (hem, cuff, ...), labelled with the loop's name;
 and a notch labelled with the seam name at the middle of every seam cut through it, on both
-sides, to line the pieces up when sewing.
+sides, to line the pieces up when sewing. With a seam allowance the outline becomes the sew
+line and the cut line runs the allowance outside it (holes shrink by as much).
+
+The sheet also holds the 100 mm reference square and a legend (line kinds, the clutches and
+whether each carries load); every text is placed by :mod:`kgarment.fabricate.annotate` so
+that no two overlap.
 """
 
 from __future__ import annotations
@@ -17,15 +22,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kgarment.fabricate.annotate import (
+    BUTTON_MM,
+    SQUARE_MM,
+    clutch_notes,
+    label_sheet,
+    legend_block,
+)
 from kgarment.fabricate.flatten import face_jacobians, triangle_frames
 from kgarment.fabricate.outline import point_segment_distance, smooth_outline
 from kgarment.fabricate.patterns import PatternSet
 from kgarment.garment.topology import triangle_areas
 
 MM = 1000.0
-SQUARE_MM = 100.0
 NOTCH_MM = 5.0
-BUTTON_MM = 5.0  # diameter of the snap-button mark
 
 
 @dataclass(frozen=True)
@@ -47,7 +57,9 @@ class Piece:
     raw_outlines : the same loops through the flattened mesh boundary, unsmoothed;
     rotation : (2, 2), offset : (2,), with sheet_mm = rotation @ (1000 uv) + offset;
     buttons : (b, 2) mm centres of the snap-button marks; button_names : b names;
-    marks : drawn marks; text, text_at : the label text and its place (2,) mm.
+    marks : drawn marks; text, text_at : the label text and the spot it names (2,) mm;
+    allowance : closed polylines (k, 2) mm, the cut line a seam allowance outside the
+    outlines (the outer one first), empty without an allowance.
     """
 
     label: str
@@ -60,6 +72,12 @@ class Piece:
     marks: tuple[Mark, ...]
     text: str
     text_at: np.ndarray
+    allowance: tuple[np.ndarray, ...] = ()
+
+    @property
+    def cut_lines(self) -> tuple[np.ndarray, ...]:
+        """The closed polylines (k, 2) mm to cut along: the allowance, or the outlines."""
+        return self.allowance or self.outlines
 
     def to_sheet(self, uv: np.ndarray) -> np.ndarray:
         """(k, 2) sheet millimetres of flat patch points uv (k, 2) in metres."""
@@ -69,13 +87,19 @@ class Piece:
 @dataclass(frozen=True)
 class Sheet:
     """The whole cutting layout: width, height in mm, pieces, the reference square
-    (5, 2) mm closed, and a title."""
+    (5, 2) mm closed, and a title; allowance : the seam allowance, mm; legend : the legend's
+    sample lines as (layer, (k, 2) mm polyline); labels : every text on the sheet, placed;
+    clutches : one note per clutch (number, name, load)."""
 
     width: float
     height: float
     pieces: tuple[Piece, ...]
     square: np.ndarray
     title: str
+    allowance: float = 0.0
+    legend: tuple = ()
+    labels: tuple = ()
+    clutches: tuple = ()
 
 
 def up_direction(V: np.ndarray, F: np.ndarray, uv: np.ndarray, up=(0.0, 0.0, 1.0)) -> np.ndarray | None:
@@ -92,7 +116,8 @@ def up_direction(V: np.ndarray, F: np.ndarray, uv: np.ndarray, up=(0.0, 0.0, 1.0
     return None if n < 0.2 * w.sum() else s / n
 
 
-def _rotation(d: np.ndarray | None) -> np.ndarray:
+def up_rotation(d: np.ndarray | None) -> np.ndarray:
+    """(2, 2) rotation taking the direction d (2,) to +y (identity for None)."""
     if d is None:
         return np.eye(2)
     c, s = d[1], d[0]  # the rotation taking d to +y
@@ -169,7 +194,7 @@ def _clutch_marks(patch, strips, uv_to_sheet):
             elif run:
                 if len(run) > 1:
                     pts = uv_to_sheet(np.array(run))
-                    marks.append(Mark("clutch", pts, text=c.name, at=pts[len(pts) // 2]))
+                    marks.append(Mark("clutch", pts))
                 run = []
     return np.array(buttons).reshape(-1, 2), tuple(names), marks
 
@@ -180,11 +205,27 @@ def _label_spot(outlines: list[np.ndarray], centres: np.ndarray) -> np.ndarray:
     return centres[int(np.argmax(d))]
 
 
-def place_piece(patch, garment, strips, seams, smooth_iterations: int = 10) -> Piece:
-    """A patch turned "up" and drawn with its marks, before packing (offset 0)."""
+def allowance_outlines(outlines, allowance: float) -> tuple[np.ndarray, ...]:
+    """The cut line ``allowance`` mm outside the closed polylines ``outlines`` (k, 2) mm (the
+    outer one first, then holes), with round corners so that every point of it lies exactly
+    ``allowance`` from the outline; () for no allowance."""
+    if allowance <= 0:
+        return ()
+    from shapely import Polygon
+
+    shape = Polygon(outlines[0], [o for o in outlines[1:] if len(o) > 2]).buffer(0)  # untangled
+    grown = shape.buffer(allowance, join_style="round", quad_segs=16)
+    polys = sorted(getattr(grown, "geoms", [grown]), key=lambda g: -g.area)
+    rings = [polys[0].exterior] + [r for g in polys for r in g.interiors] + [g.exterior for g in polys[1:]]
+    return tuple(np.asarray(r.coords)[:-1] for r in rings)
+
+
+def place_piece(patch, garment, strips, seams, smooth_iterations: int = 10, allowance: float = 0.0) -> Piece:
+    """A patch turned "up" and drawn with its marks, before packing (offset 0); ``allowance``
+    mm of seam allowance around it."""
     V, F, uv = patch.mesh.vertices, patch.mesh.faces, patch.flat.uv
     up = up_direction(V, F, uv)
-    R = _rotation(up)
+    R = up_rotation(up)
     pts = (MM * uv) @ R.T
     loops = patch.mesh.loops()
     raw = [pts[lp] for lp in loops]
@@ -200,48 +241,62 @@ def place_piece(patch, garment, strips, seams, smooth_iterations: int = 10) -> P
         arrow = np.array([at, tip, tip + [-0.15 * length, -0.25 * length], tip, tip + [0.15 * length, -0.25 * length]])
         marks.append(Mark("arrow", arrow, text="UP", at=tip + [0.0, 3.0]))
     text = f"{patch.label} {1e4 * patch.flat.area_3d:.0f} cm2"
-    return Piece(patch.label, tuple(outl), tuple(raw), R, np.zeros(2), buttons, names, tuple(marks), text, at)
+    return Piece(patch.label, tuple(outl), tuple(raw), R, np.zeros(2), buttons, names, tuple(marks), text, at,
+                 allowance_outlines(outl, allowance))
 
 
 def _moved(p: Piece, shift: np.ndarray) -> Piece:
     mv = lambda a: a + shift
     marks = tuple(Mark(m.kind, mv(m.points), m.closed, m.text, None if m.at is None else mv(m.at)) for m in p.marks)
     return Piece(p.label, tuple(map(mv, p.outlines)), tuple(map(mv, p.raw_outlines)), p.rotation,
-                 p.offset + shift, mv(p.buttons), p.button_names, marks, p.text, mv(p.text_at))
+                 p.offset + shift, mv(p.buttons), p.button_names, marks, p.text, mv(p.text_at),
+                 tuple(map(mv, p.allowance)))
 
 
 def _bounds(p: Piece) -> tuple[np.ndarray, np.ndarray]:
-    allp = np.concatenate(list(p.outlines) + list(p.raw_outlines) + [m.points for m in p.marks]
+    allp = np.concatenate(list(p.outlines) + list(p.raw_outlines) + list(p.allowance) + [m.points for m in p.marks]
                           + [p.buttons + d for d in ((BUTTON_MM, BUTTON_MM), (-BUTTON_MM, -BUTTON_MM))])
     return allp.min(axis=0), allp.max(axis=0)
 
 
-def layout_sheet(patterns: PatternSet, garment, strips, sheet_width: float = 600.0, gap: float = 10.0,
-                 smooth_iterations: int = 10, title: str = "") -> Sheet:
-    """Pack every patch onto a sheet at most ``sheet_width`` mm wide (wider only where one patch
-    is), shelf by shelf, tallest first; the sheet is cropped to what it holds."""
-    pieces = [place_piece(p, garment, strips, patterns.seams, smooth_iterations) for p in patterns.patches]
-    boxes = [_bounds(p) for p in pieces]
-    sizes = [hi - lo for lo, hi in boxes]
-    width = max([sheet_width, SQUARE_MM + 2 * gap] + [s[0] + 2 * gap for s in sizes])
-    # shelves, top down (y grows downwards while packing; flipped at the end)
-    items = [(-1, np.array([SQUARE_MM, SQUARE_MM + 8.0]))] + [(i, sizes[i]) for i in
-                                                              sorted(range(len(pieces)), key=lambda i: -sizes[i][1])]
-    x, y, shelf, spots = gap, gap, 0.0, {}
-    for i, s in items:
+def shelf_pack(sizes, width: float, gap: float = 10.0) -> tuple[np.ndarray, float, float]:
+    """Shelf packing, in the given order, left to right and top down, on a sheet at most
+    ``width`` mm wide (wider only where one item is). sizes : (k, 2) mm.
+    Returns (lower-left corners (k, 2) mm with y up, used width, height)."""
+    sizes = np.asarray(sizes, float).reshape(-1, 2)
+    width = max([width] + [s[0] + 2 * gap for s in sizes])
+    x, y, shelf, spots = gap, gap, 0.0, []
+    for s in sizes:  # y grows downwards while packing; flipped at the end
         if x + s[0] + gap > width and x > gap:
             x, y, shelf = gap, y + shelf + gap, 0.0
-        spots[i] = (x, y, s)
+        spots.append((x, y))
         x += s[0] + gap
         shelf = max(shelf, s[1])
     height = y + shelf + gap
-    width = max(x0 + s[0] + gap for x0, _, s in spots.values())  # as wide as used
-    placed = []
-    for i, p in enumerate(pieces):
-        x, y, s = spots[i]
-        lo, _hi = boxes[i]
-        placed.append(_moved(p, np.array([x, height - y - s[1]]) - lo))
-    x, y, _ = spots[-1]
-    y0 = height - y - SQUARE_MM
+    used = max([x0 + s[0] + gap for (x0, _), s in zip(spots, sizes)] + [2 * gap])
+    corners = np.array([[x0, height - y0 - s[1]] for (x0, y0), s in zip(spots, sizes)]).reshape(-1, 2)
+    return corners, float(used), float(height)
+
+
+def layout_sheet(patterns: PatternSet, garment, strips, sheet_width: float = 600.0, gap: float = 10.0,
+                 smooth_iterations: int = 10, title: str = "", allowance: float = 0.0, loads=None) -> Sheet:
+    """Pack every patch onto a sheet at most ``sheet_width`` mm wide (wider only where one patch
+    is), shelf by shelf, tallest first, after the reference square and the legend; the sheet
+    is cropped to what it holds. allowance : seam allowance, mm; loads : the design's
+    ``kgarment.design.loads.LoadReport`` (clutches that carry no load are flagged), or None
+    (not evaluated)."""
+    pieces = [place_piece(p, garment, strips, patterns.seams, smooth_iterations, allowance) for p in patterns.patches]
+    notes = clutch_notes(strips, pieces, loads)
+    legend_lines, legend_size = legend_block(title, allowance, notes)
+    boxes = [_bounds(p) for p in pieces]
+    sizes = [hi - lo for lo, hi in boxes]
+    order = sorted(range(len(pieces)), key=lambda i: -sizes[i][1])
+    fixed = [np.array([SQUARE_MM, SQUARE_MM + 8.0]), legend_size]
+    corners, width, height = shelf_pack(fixed + [sizes[i] for i in order], sheet_width, gap)
+    placed = [None] * len(pieces)
+    for k, i in enumerate(order):
+        placed[i] = _moved(pieces[i], corners[2 + k] - boxes[i][0])
+    x, y0 = corners[0] + [0.0, 8.0]
     square = np.array([[x, y0], [x + SQUARE_MM, y0], [x + SQUARE_MM, y0 + SQUARE_MM], [x, y0 + SQUARE_MM], [x, y0]])
-    return Sheet(float(width), float(height), tuple(placed), square, title)
+    sheet = Sheet(float(width), float(height), tuple(placed), square, title, float(allowance), (), (), tuple(notes))
+    return label_sheet(sheet, legend_lines, corners[1] + [0.0, legend_size[1]])
