@@ -83,6 +83,7 @@ FLAGS = [
     (["fabricate", "run", "--max-cuts", "-1"], "argument --max-cuts: -1 is outside [0, 64]"),
     (["fabricate", "run", "--min-width", "inf"], "argument --min-width: inf is not a finite number"),
     (["reproduce", "--preset", "steel"], "argument --preset: invalid choice: 'steel'"),
+    (["plan", "run", "--exhaustive", "11"], "argument --exhaustive: 11 is outside [0, 10]"),
 ]
 
 
@@ -100,6 +101,7 @@ def test_outputs_checked_before_the_work(tmp_path, monkeypatch, capsys):
         (["evaluate", "norun", "--json", "adir"], "--json adir is a folder"),
         (["evaluate", "norun", "--json", "afile/x.json"], "afile is a file, not a folder"),
         (["evaluate", "norun", "--plot", "adir"], "--plot adir is a folder"),
+        (["plan", "norun", "--out", "afile"], "--out afile is a file"),
         (["simulate", "--out", "afile"], "--out afile is a file, not a folder"),
         (["render", "--out", "afile/pics"], "afile is a file, not a folder"),
         (["clutches", "suggest", "--out", "afile"], "--out afile is a file"),

@@ -116,3 +116,15 @@ def test_resume_from_the_command_line_and_evaluate(tmp_path, anny_body):
     assert again["rows"] == final["rows"] and again["clutches"] == final["clutches"]
     rc, _, err = _cli(["evaluate", "nowhere"], tmp_path)
     assert rc == 2 and "not a run folder" in err
+    # the control table of the same design: its all-ON and all-OFF energies are the evaluation's
+    rc, out, err = _cli(["plan", "whole@1"], tmp_path)
+    assert rc == 0, err
+    plan = json.loads((tmp_path / "whole" / "plan@1.json").read_text())
+    rec = plan["motions"]["arm_flexion.right"]
+    assert plan["clutches"] == ["elbow_outer.R"] and plan["exhaustive"]
+    assert rec["best"]["energy_J"] == pytest.approx(g["energy_on_J"], rel=1e-9)
+    assert rec["energy_off_J"] == pytest.approx(g["energy_off_J"], rel=1e-9)
+    assert rec["best"]["resistance_J"] == pytest.approx(g["energy_on_J"] - g["energy_off_J"], rel=1e-9)
+    assert "# Control plan" in (tmp_path / "whole" / "plan@1.md").read_text()
+    rc, _, err = _cli(["plan", "whole@1"], tmp_path)
+    assert rc == 2 and "exists" in err  # an existing plan is not replaced without --force

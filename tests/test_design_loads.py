@@ -14,7 +14,7 @@ from kgarment.sim.synthetic import Tube
 
 
 @pytest.fixture(scope="module")
-def tube_loads():
+def tube():
     """A tube (30 cm long, 5 cm radius) stretched 5% along its axis, with two 14 cm clutches
     on opposite sides, ``paper`` materials (cloth 0.5 MPa, reinforcement 0.5 GPa, clutch ON
     3 GPa).  Reinforced: two bands 2.6 cm wide along the first clutch, from the held bottom
@@ -32,7 +32,13 @@ def tube_loads():
     reinforced = band & ((c[:, 2] < 0.095) | (c[:, 2] > 0.205))
     design = np.where(reinforced, 1.0, 1e-3)
     setup = DesignSetup.build(model, {"pull": motion}, "active", BesoParams(), SolverOptions(tol=1e-5, max_iter=300))
-    return Evaluator(setup).evaluate(design, loads=True)
+    return Evaluator(setup), design
+
+
+@pytest.fixture(scope="module")
+def tube_loads(tube):
+    evaluator, design = tube
+    return evaluator.evaluate(design, loads=True)
 
 
 def test_the_only_load_path_carries_everything_and_a_loose_clutch_nothing(tube_loads):
@@ -54,3 +60,24 @@ def test_loads_in_json_and_chart(tube_loads, tmp_path):
     assert "linked" in tube_loads.loads.table()
     png = load_chart(tube_loads.loads, tmp_path / "loads.png", "tube")
     assert png.stat().st_size > 5000
+
+
+def test_the_control_plan_switches_the_linked_clutch_alone(tube, tube_loads):
+    """Every subset evaluated: {linked} keeps the whole resistance, {loose} none of it, so
+    the recommended set is {linked}; the all-ON and OFF energies are the evaluator's; the
+    greedy search (exhaustive limit 0) finds the same set first."""
+    from kgarment.design.plan import make_plan, plan_markdown
+
+    evaluator, design = tube
+    plan = make_plan(evaluator, design)
+    assert plan.exhaustive and len(plan.sets("pull")) == 3
+    (g,) = tube_loads.loads.garment
+    assert plan.all_on("pull").energy_J == pytest.approx(g.energy_on_J, rel=1e-6)
+    assert plan.energy_off_J["pull"] == pytest.approx(g.energy_off_J, rel=1e-6)
+    assert plan.get("pull", ["linked"]).fraction == pytest.approx(1.0, abs=0.05)
+    assert abs(plan.get("pull", ["loose"]).fraction) < 0.03
+    assert plan.smallest("pull").clutches == ("linked",) and plan.locks(plan.smallest("pull")) == []
+    assert plan.get("pull", ["linked"]).tension_N["linked"] > 10
+    assert "| pull | linked |" in plan_markdown(plan, "tube")
+    greedy = make_plan(evaluator, design, exhaustive_up_to=0)
+    assert not greedy.exhaustive and greedy.smallest("pull").clutches == ("linked",)

@@ -54,6 +54,9 @@ LOADED_SHARE = 0.10    # a clutch is "loaded" in a motion when switching it on a
                        # this share of the energy that switching all clutches on adds
 MIN_GAIN = 0.01        # below this share of the OFF energy, switching the clutches on changes nothing
 LOAD_TOL = 1e-3        # solver tolerance of the one-clutch-ON states behind the shares
+PLAN_EXHAUSTIVE = 6     # kgarment plan tries every clutch subset up to this many clutches, greedy sets beyond
+PLAN_KEEP = 0.9         # the recommended set of a motion keeps this share of its all-ON resistance
+PLAN_LOCK = 0.5         # a set "locks" another motion where it resists it with this share of its all-ON resistance
 UNCONTROLLABLE = 0.002  # a motion where switching the clutches ON changes the fully reinforced garment's
                         # energy by less than this share is reported as one they cannot control
                         # (kgarment.design.control; measured: shirt motions 1-3% with either material

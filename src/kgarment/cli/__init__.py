@@ -1,7 +1,7 @@
 """The ``kgarment`` command line: a thin layer over the library.
 
 One module per command group (``inputs``: motions, garments, render, clutches, examples;
-``simulate``; ``design``: design, evaluate, demo; ``fabricate``; ``reproduce``;
+``simulate``; ``design``: design, evaluate, demo; ``plan``; ``fabricate``; ``reproduce``;
 ``studio``) and ``common`` for the shared arguments.  Each command parses its flags,
 calls the library and prints; a user error (:class:`~kgarment.errors.KgarmentError`)
 prints one line and exits with status 2.  Commands import the pipeline stages they use
@@ -15,11 +15,11 @@ import logging
 import sys
 
 from kgarment import __version__
-from kgarment.cli import design, fabricate, inputs, reproduce, simulate, studio
+from kgarment.cli import design, fabricate, inputs, plan, reproduce, simulate, studio
 from kgarment.errors import KgarmentError
 
-GROUPS = (inputs, simulate, design, fabricate, studio, reproduce)
-QUIET_SOLVER = ("design", "demo", "reproduce")  # the progress bar says enough
+GROUPS = (inputs, simulate, design, plan, fabricate, studio, reproduce)
+QUIET_SOLVER = ("design", "demo", "reproduce", "plan")  # the progress bar says enough
 
 
 class Parser(argparse.ArgumentParser):

@@ -107,6 +107,23 @@ class LoadReport:
         return "\n".join(lines)
 
 
+def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> dict:
+    """{(motion, label): StateResult} of ``design`` (m,) in ``keyed`` states (clutch
+    activations other than all ON / all OFF, from :meth:`Evaluator.activation_states`).
+    Each starts from its motion's all-ON equilibrium ``known[(motion, "on")]`` with the
+    activation changed and is solved to :data:`LOAD_TOL`; states that do not converge so
+    go through the evaluator's two starts."""
+    setup = evaluator.setup
+    opts = dataclasses.replace(setup.solver, tol=max(setup.solver.tol, LOAD_TOL))
+    solved = solve_states(setup.model, design, [st for _, st in keyed],
+                          warm_start=[known[(key[0], "on")].x for key, _ in keyed], options=opts)
+    out = {key: r for (key, _), r in zip(keyed, solved) if r.converged}
+    retry = [(key, st) for key, st in keyed if key not in out]
+    if retry:
+        out.update(zip([key for key, _ in retry], evaluator.equilibria(design, retry)))
+    return out
+
+
 def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None = None) -> LoadReport:
     """The :class:`LoadReport` of ``design`` (m,) on ``motions`` (default: all).
 
@@ -127,15 +144,7 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
     singles = []
     for k, name in enumerate(names):
         singles += evaluator.activation_states(np.eye(K)[k], motions, f"only {name}")
-    # a single clutch's state starts from the all-ON equilibrium (the others switched off) and
-    # is solved to LOAD_TOL; states that do not converge so go through the evaluator's starts
-    opts = dataclasses.replace(setup.solver, tol=max(setup.solver.tol, LOAD_TOL))
-    solved = solve_states(model, design, [st for _, st in singles],
-                          warm_start=[known[(key[0], "on")].x for key, _ in singles], options=opts)
-    known.update({key: r for (key, _), r in zip(singles, solved) if r.converged})
-    retry = [(key, st) for key, st in singles if key not in known]
-    if retry:
-        known.update(zip([key for key, _ in retry], evaluator.equilibria(design, retry)))
+    known.update(activation_equilibria(evaluator, design, singles, known))
     wanted = ends + singles
     states = dict(wanted)
     loads, garment = [], []

@@ -1,0 +1,242 @@
+"""The control table: which clutches to switch on for which motion (issue #22, item 3).
+
+A garment designed for several motions resists all of them whenever all its clutches are
+on.  Its controller can do better: switch on, for the motion the wearer is making, the
+set of clutches that resists it, and leave off the ones that would lock another motion.
+:func:`make_plan` evaluates a design under clutch sets for every motion:
+
+* every non-empty subset of the clutches up to :data:`PLAN_EXHAUSTIVE` clutches (2^K - 1
+  sets), and beyond that a greedy search per motion (add the clutch that raises the
+  resistance most while it still does, every prefix kept), the sets found then evaluated
+  in every motion;
+* per (motion, set): the garment's energy with that set ON (J, the total energy of the
+  equilibrium: what the wearer works against), the *resistance* (that energy minus all
+  OFF), its *fraction* of the all-ON resistance, and the tension of every clutch of the
+  set (N, :func:`kgarment.sim.clutch_tensions`).
+
+Per motion the plan names the set of highest resistance and the *smallest* set that keeps
+at least :data:`PLAN_KEEP` of the all-ON resistance (fewer clutches to power and wire),
+and, for that set, what it does to the other motions: a set *locks* another motion where
+it resists it with at least :data:`PLAN_LOCK` of that motion's all-ON resistance (the
+paper's two-motion sleeve switches the opposing clutch off "to prevent full arm-locking").
+
+Equilibria come from the one design evaluator (all ON and all OFF from its two starts; a
+set starts from the all-ON equilibrium, :func:`kgarment.design.loads.activation_equilibria`),
+so the all-ON and all-OFF energies are those of ``kgarment evaluate``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from kgarment.constants import MIN_GAIN, PLAN_EXHAUSTIVE, PLAN_KEEP, PLAN_LOCK
+from kgarment.design.loads import activation_equilibria
+from kgarment.sim import clutch_tensions
+
+
+@dataclass(frozen=True)
+class SetResult:
+    """One clutch set in one motion.  clutches : the names switched on (the rest off);
+    energy_J : garment energy (J); resistance_J : energy minus all OFF (J); fraction :
+    resistance over the all-ON resistance (NaN where all ON changes less than MIN_GAIN of
+    the OFF energy); tension_N : {clutch: N} for the clutches of the set; converged."""
+
+    motion: str
+    clutches: tuple[str, ...]
+    energy_J: float
+    resistance_J: float
+    fraction: float
+    tension_N: dict
+    converged: bool = True
+
+    def row(self) -> dict:
+        return {"motion": self.motion, "clutches": list(self.clutches), "energy_J": self.energy_J,
+                "resistance_J": self.resistance_J, "fraction": None if math.isnan(self.fraction) else self.fraction,
+                "tension_N": self.tension_N, "converged": self.converged}
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Every evaluated (motion, set), the motions and clutch names, the all-OFF energy per
+    motion (J), and whether every subset was tried (``exhaustive``)."""
+
+    motions: tuple[str, ...]
+    clutch_names: tuple[str, ...]
+    results: tuple[SetResult, ...]
+    energy_off_J: dict
+    exhaustive: bool
+
+    def sets(self, motion: str) -> list[SetResult]:
+        return [r for r in self.results if r.motion == motion]
+
+    def get(self, motion: str, clutches) -> SetResult:
+        key = tuple(c for c in self.clutch_names if c in set(clutches))
+        return next(r for r in self.results if r.motion == motion and r.clutches == key)
+
+    def all_on(self, motion: str) -> SetResult:
+        return self.get(motion, self.clutch_names)
+
+    def controllable(self, motion: str) -> bool:
+        """Whether switching clutches on changes this motion at all (above MIN_GAIN)."""
+        return self.all_on(motion).resistance_J > MIN_GAIN * abs(self.energy_off_J[motion])
+
+    def best(self, motion: str) -> SetResult:
+        """The set of highest resistance (fewer clutches first among equals)."""
+        return max(self.sets(motion), key=lambda r: (r.resistance_J, -len(r.clutches)))
+
+    def smallest(self, motion: str, keep: float = PLAN_KEEP) -> SetResult:
+        """The fewest clutches keeping ``keep`` of the all-ON resistance (the strongest of
+        those); the best set where the motion is not controllable."""
+        if not self.controllable(motion):
+            return self.best(motion)
+        ok = [r for r in self.sets(motion) if r.fraction >= keep]
+        return min(ok, key=lambda r: (len(r.clutches), -r.resistance_J)) if ok else self.best(motion)
+
+    def locks(self, chosen: SetResult, lock: float = PLAN_LOCK) -> list[SetResult]:
+        """The other motions that ``chosen``'s set resists with at least ``lock`` of their
+        all-ON resistance."""
+        out = []
+        for m in self.motions:
+            if m == chosen.motion or not self.controllable(m):
+                continue
+            try:
+                r = self.get(m, chosen.clutches)
+            except StopIteration:
+                continue
+            if r.fraction >= lock:
+                out.append(r)
+        return out
+
+    def to_json(self) -> dict:
+        per = {}
+        for m in self.motions:
+            s = self.smallest(m)
+            per[m] = {"controllable": self.controllable(m), "energy_off_J": self.energy_off_J[m],
+                      "best": self.best(m).row(), "recommended": s.row(),
+                      "locks": {r.motion: r.fraction for r in self.locks(s)},
+                      "elsewhere": {o: self.get(o, s.clutches).row() for o in self.motions
+                                    if o != m and _has(self, o, s.clutches)}}
+        return {"clutches": list(self.clutch_names), "exhaustive": self.exhaustive, "keep": PLAN_KEEP,
+                "lock": PLAN_LOCK, "motions": per, "sets": [r.row() for r in self.results]}
+
+
+def _has(plan: Plan, motion: str, clutches) -> bool:
+    try:
+        plan.get(motion, clutches)
+        return True
+    except StopIteration:
+        return False
+
+
+def _label(names) -> str:
+    return "+".join(names) if names else "none"
+
+
+def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int = PLAN_EXHAUSTIVE) -> Plan:
+    """The :class:`Plan` of ``design`` (m,) on ``motions`` (default: the evaluator's), with
+    every subset of the clutches when there are at most ``exhaustive_up_to`` of them,
+    greedy sets otherwise."""
+    setup = evaluator.setup
+    names = tuple(c.name for c in setup.model.clutches)
+    K = len(names)
+    motions = evaluator.motion_names(motions)
+    design = np.asarray(design, dtype=np.float64)
+    ev = evaluator.evaluate(design, motions)
+    known = {s.key: s.result for s in ev.states if s.state in ("on", "off")}
+    vec = {}
+
+    def solve(sets, ms):
+        keyed = []
+        for idx in sets:
+            g = np.zeros(K)
+            g[list(idx)] = 1.0
+            label = _label(names[i] for i in idx)
+            vec[label] = g
+            keyed += [k for k in evaluator.activation_states(g, ms, label) if k[0] not in known]
+        if keyed:
+            known.update(activation_equilibria(evaluator, design, keyed, known))
+            states.update(dict(keyed))
+
+    states = {}
+    full = tuple(range(K))
+    if K <= exhaustive_up_to:
+        subsets = [s for n in range(1, K) for s in itertools.combinations(range(K), n)]
+        solve(subsets, motions)
+        chosen = subsets + [full]
+    else:
+        chosen = {full}
+        for m in motions:
+            cur: tuple[int, ...] = ()
+            best_e = known[(m, "off")].total_energy
+            while len(cur) < K:
+                cand = [tuple(sorted(cur + (k,))) for k in range(K) if k not in cur]
+                solve(cand, [m])
+                e = [known[(m, _label(names[i] for i in c))].total_energy if c != full else known[(m, "on")].total_energy
+                     for c in cand]
+                j = int(np.argmax(e))
+                if e[j] <= best_e:
+                    break
+                cur, best_e = cand[j], e[j]
+                chosen.add(cur)
+        chosen = sorted(chosen, key=lambda c: (len(c), c))
+        solve([c for c in chosen if c != full], motions)
+    results = []
+    for m in motions:
+        on, off = known[(m, "on")], known[(m, "off")]
+        gain = on.total_energy - off.total_energy
+        for idx in chosen:
+            label = "on" if idx == full else _label(names[i] for i in idx)
+            r = known[(m, label)]
+            st = states.get((m, label)) or dict(evaluator.activation_states(np.ones(K), [m], "on"))[(m, "on")]
+            t = clutch_tensions(setup.model, design, st, r.x, setup.solver)
+            res = r.total_energy - off.total_energy
+            frac = res / gain if gain > MIN_GAIN * abs(off.total_energy) else float("nan")
+            results.append(SetResult(m, tuple(names[i] for i in idx), float(r.total_energy), float(res), float(frac),
+                                     {names[i]: float(t[i]) for i in idx}, bool(r.converged)))
+    return Plan(tuple(motions), names, tuple(results), {m: float(known[(m, "off")].total_energy) for m in motions},
+                K <= exhaustive_up_to)
+
+
+def plan_markdown(plan: Plan, title: str) -> str:
+    """``plan.md``: per motion the recommended set (what to program into the garment's
+    controller), its resistance and tensions, what it does in the other motions, and the
+    full motion x set table of resistances."""
+    md = [f"# Control plan: {title}", "",
+          f"Clutches: {', '.join(plan.clutch_names)}. Resistance = garment energy with the set ON minus all "
+          f"OFF (J; what the wearer works against, beyond the plain garment). Recommended = the fewest clutches "
+          f"keeping {PLAN_KEEP:.0%} of the all-ON resistance; a set *locks* another motion where it resists it "
+          f"with {PLAN_LOCK:.0%} or more of that motion's all-ON resistance. "
+          + ("Every subset of the clutches was evaluated." if plan.exhaustive else
+             "Sets found by a greedy search per motion (more clutches than the exhaustive limit)."), "",
+          "| motion | switch on | resistance (J) | of all ON | tensions (N) | locks |", "|---|---|---|---|---|---|"]
+    for m in plan.motions:
+        if not plan.controllable(m):
+            md.append(f"| {m} | (none: no clutch set changes this motion) | "
+                      f"{plan.all_on(m).resistance_J:.3g} | - | - | - |")
+            continue
+        s = plan.smallest(m)
+        locks = ", ".join(f"{r.motion} ({r.fraction:.0%})" for r in plan.locks(s)) or "none"
+        tens = ", ".join(f"{k} {v:.0f}" for k, v in s.tension_N.items())
+        md.append(f"| {m} | {', '.join(s.clutches)} | {s.resistance_J:.3g} | {s.fraction:.0%} | {tens} | {locks} |")
+    md += ["", "## Every set in every motion (resistance in J, fraction of all ON)", "",
+           "| set | " + " | ".join(plan.motions) + " |", "|---|" + "---|" * len(plan.motions)]
+    seen = []
+    for r in plan.results:
+        if r.clutches not in seen:
+            seen.append(r.clutches)
+    for key in seen:
+        cells = []
+        for m in plan.motions:
+            try:
+                r = plan.get(m, key)
+            except StopIteration:
+                cells.append("-")
+                continue
+            frac = "" if math.isnan(r.fraction) else f" ({r.fraction:.0%})"
+            cells.append(f"{r.resistance_J:.3g}{frac}" + ("" if r.converged else " (not converged)"))
+        md.append(f"| {', '.join(key)} | " + " | ".join(cells) + " |")
+    return "\n".join(md) + "\n"
