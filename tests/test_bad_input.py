@@ -36,6 +36,15 @@ def assert_one_line(rc, err, message):
 
 # (problem file text, message); each is rendered with `kgarment render p.toml`
 PROBLEMS = [
+    ('[motions]\nuse = ["arm_flexion.right"]\n[motions.activation]\n"arm_flexion.right" = []\n',
+     "[motions.activation] arm_flexion.right switches no clutch on (an empty set)"),
+    ('[motions]\nuse = ["arm_flexion.right"]\n[motions.activation]\n"arm_flexion.right" = { "elbow_outer.R" = 1.5 }\n',
+     "[motions.activation] arm_flexion.right: elbow_outer.R = 1.5 is outside [0, 1]"),
+    ('[motions]\nuse = ["arm_flexion.right"]\n[motions.activation]\narms_raise = ["upper_back"]\n',
+     "[motions.activation] 'arms_raise' is not a motion of this problem; allowed: arm_flexion.right"),
+    ('[motions]\nuse = ["arm_flexion.right"]\n[motions.activation]\n"arm_flexion.right" = "elbow_outer.R"\n',
+     "must be a list of clutch names or a table"),
+    ('[design]\nlockout = -1\n', "lockout = -1"),
     ('[garment]\nsubdivision = false\n', "subdivision = False; allowed: 0, 1, 2, 3"),
     ('[garment]\nsubdivision = 0.5\n', "subdivision = 0.5; allowed"),
     (ROT % 'axis = "x", degrees = "sixty"', "degrees = 'sixty'; allowed: a number in [-180, 180]"),
@@ -278,3 +287,16 @@ def test_workers_die_with_their_parent(tmp_path):
         for p in pids:
             if _alive(p):
                 os.kill(p, signal.SIGKILL)
+
+
+def test_an_activation_set_naming_an_unknown_clutch(tmp_path, monkeypatch, capsys, anny_body):
+    """Clutch names are known once the clutches are built: one line naming the motion and
+    the clutches there are, and no run folder left behind."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.toml").write_text('[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n'
+                                     '[motions]\nuse = ["arm_flexion.right"]\n[clutches]\nlayout = "sleeve"\n'
+                                     '[motions.activation]\n"arm_flexion.right" = ["elbow_outer.L"]\n')
+    rc, _, err = run_cli(["design", "p.toml", "--out", "run"], capsys)
+    assert_one_line(rc, err, "[motions.activation] arm_flexion.right: unknown clutch 'elbow_outer.L'; "
+                             "the clutches are: elbow_outer.R, elbow_inner.R")
+    assert not (tmp_path / "run").exists()

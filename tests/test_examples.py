@@ -31,7 +31,7 @@ def test_example_parses_and_round_trips(path, anny_body, tmp_path):
 
     save_clutches(tmp_path / "c.toml", specs)
     again = parse_problem(problem_to_dict(p, tmp_path / "c.toml"), tmp_path)
-    assert again.motions == p.motions and again.garment == p.garment
+    assert again.motions == p.motions and again.garment == p.garment and again.activation == p.activation
     assert again.design == p.design and again.solver == p.solver and again.materials == p.materials
     assert [s.name for s in clutch_specs(again, anny_body)] == [s.name for s in specs]
 

@@ -65,7 +65,7 @@ def control_check(setup: DesignSetup, warm: dict[str, np.ndarray] | None = None)
     """Per motion of ``setup`` (an active objective with clutches): the fully reinforced
     garment ON and OFF (warm started from ``warm`` {state name: x}, iteration 0's
     equilibria)."""
-    keyed = setup.states()
+    keyed = [(k, s) for k, s in setup.states() if k[1] in ("on", "off")]  # ON: each motion's set
     if not setup.n_clutches or {s for (_, s), _ in keyed} != {"on", "off"}:
         return []
     warm = warm or {}

@@ -3,7 +3,7 @@
 Per motion and clutch k (method.md section 9):
 
 * ``share``: garment energy with only clutch k ON minus all OFF, over all ON minus all
-  OFF.  A clutch that is not at a junction of reinforcement has share ~0 ("if clutches are
+  OFF (ON: the motion's activation set where the problem gives one).  A clutch that is not at a junction of reinforcement has share ~0 ("if clutches are
   not at junctures, then their activation will have no effect on the user"); the only
   load path has share ~1.  Shares of several clutches need not add to 1 (paths in series
   or in parallel);
@@ -136,14 +136,16 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
     motions = evaluator.motion_names(motions)
     known = dict(known or {})
     K = len(names)
-    ends = evaluator.activation_states(np.ones(K), motions, "on") + \
-        evaluator.activation_states(np.zeros(K), motions, "off")
+    ends = [(k, st) for k, st in evaluator.keyed(motions) if k[1] in ("on", "off")]  # ON: the motion's set
     todo = [(key, st) for key, st in ends if key not in known]
     if todo:
         known.update(zip([key for key, _ in todo], evaluator.equilibria(design, todo)))
     singles = []
-    for k, name in enumerate(names):
-        singles += evaluator.activation_states(np.eye(K)[k], motions, f"only {name}")
+    for m in motions:
+        g_on = setup.on_activation(m)  # a clutch alone at its value in the motion's set (1 if not in it)
+        for k, name in enumerate(names):
+            singles += evaluator.activation_states(np.eye(K)[k] * (g_on[k] if g_on[k] > 0 else 1.0), [m],
+                                                   f"only {name}")
     known.update(activation_equilibria(evaluator, design, singles, known))
     wanted = ends + singles
     states = dict(wanted)

@@ -147,26 +147,28 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
     design = np.asarray(design, dtype=np.float64)
     ev = evaluator.evaluate(design, motions)
     known = {s.key: s.result for s in ev.states if s.state in ("on", "off")}
-    vec = {}
+    states = {k: st for k, st in evaluator.keyed(motions) if k[1] == "on"}
+    full = tuple(range(K))
+    for m in motions:  # the all-clutches set is the evaluation's ON state unless the motion has its own set
+        if np.all(setup.on_activation(m) == 1.0):
+            known[(m, _label(names))] = known[(m, "on")]
+            states[(m, _label(names))] = states[(m, "on")]
 
     def solve(sets, ms):
         keyed = []
         for idx in sets:
             g = np.zeros(K)
             g[list(idx)] = 1.0
-            label = _label(names[i] for i in idx)
-            vec[label] = g
-            keyed += [k for k in evaluator.activation_states(g, ms, label) if k[0] not in known]
+            keyed += [k for k in evaluator.activation_states(g, ms, _label(names[i] for i in idx)) if k[0] not in known]
         if keyed:
             known.update(activation_equilibria(evaluator, design, keyed, known))
             states.update(dict(keyed))
 
-    states = {}
-    full = tuple(range(K))
+    def energy(m, idx):
+        return known[(m, _label(names[i] for i in idx))].total_energy
+
     if K <= exhaustive_up_to:
-        subsets = [s for n in range(1, K) for s in itertools.combinations(range(K), n)]
-        solve(subsets, motions)
-        chosen = subsets + [full]
+        chosen = [s for n in range(1, K + 1) for s in itertools.combinations(range(K), n)]
     else:
         chosen = {full}
         for m in motions:
@@ -175,24 +177,22 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
             while len(cur) < K:
                 cand = [tuple(sorted(cur + (k,))) for k in range(K) if k not in cur]
                 solve(cand, [m])
-                e = [known[(m, _label(names[i] for i in c))].total_energy if c != full else known[(m, "on")].total_energy
-                     for c in cand]
+                e = [energy(m, c) for c in cand]
                 j = int(np.argmax(e))
                 if e[j] <= best_e:
                     break
                 cur, best_e = cand[j], e[j]
                 chosen.add(cur)
         chosen = sorted(chosen, key=lambda c: (len(c), c))
-        solve([c for c in chosen if c != full], motions)
+    solve(chosen, motions)
     results = []
     for m in motions:
-        on, off = known[(m, "on")], known[(m, "off")]
-        gain = on.total_energy - off.total_energy
+        off = known[(m, "off")]
+        gain = energy(m, full) - off.total_energy
         for idx in chosen:
-            label = "on" if idx == full else _label(names[i] for i in idx)
+            label = _label(names[i] for i in idx)
             r = known[(m, label)]
-            st = states.get((m, label)) or dict(evaluator.activation_states(np.ones(K), [m], "on"))[(m, "on")]
-            t = clutch_tensions(setup.model, design, st, r.x, setup.solver)
+            t = clutch_tensions(setup.model, design, states[(m, label)], r.x, setup.solver)
             res = r.total_energy - off.total_energy
             frac = res / gain if gain > MIN_GAIN * abs(off.total_energy) else float("nan")
             results.append(SetResult(m, tuple(names[i] for i in idx), float(r.total_energy), float(res), float(frac),

@@ -15,13 +15,14 @@ import scipy.sparse as sp
 
 from kgarment.design.beso import one_ring_filter, radius_filter
 from kgarment.design.objective import states_needed
+from kgarment.errors import KgarmentError
 from kgarment.garment import Garment
 from kgarment.garment.topology import boundary_loops, face_adjacency, triangle_areas
 from kgarment.problem import BesoParams, Problem, build_model, solver_options
 from kgarment.sim import Motion, SimModel, SimState, SolverOptions, garment_motions
 
-StateKey = tuple[str, str]  # (motion, "on" | "off" | "none")
-ACTIVATION = {"on": 1.0, "off": 0.0, "none": 0.0}
+StateKey = tuple[str, str]  # (motion, "on" | "off" | "none" | "lock:OTHER MOTION")
+LOCK = "lock:"  # state label prefix: a motion under another motion's activation set
 
 
 @dataclass(frozen=True)
@@ -49,7 +50,10 @@ class DesignSetup:
     clutch;  clutch_area : total rest area of the clutches, m^2 (0 for the passive objective);
     attached : (a,) attachment faces;  loop_faces : per boundary loop of the garment, the
     faces touching it (both for :func:`kgarment.design.connect.connect_design`);
-    skin_start : iterations also solve from the skin-tight start (``SolverSpec.skin_start``).
+    skin_start : iterations also solve from the skin-tight start (``SolverSpec.skin_start``);
+    activation : {motion: (K,) activation in [0, 1] of its ON state} ([motions.activation];
+    a motion not in it switches every clutch on);  lockout : weight of the penalty on what
+    other motions' sets store in a motion (the active objective's ``lock:`` states).
     """
 
     model: SimModel
@@ -67,11 +71,14 @@ class DesignSetup:
     attached: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64), repr=False)
     loop_faces: tuple[np.ndarray, ...] = field(default=(), repr=False)
     skin_start: bool = False
+    activation: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    lockout: float = 0.0
 
     @classmethod
     def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
               solver: SolverOptions, evolution_solver: SolverOptions | None = None,
-              protected: np.ndarray | None = None, skin_start: bool = False) -> DesignSetup:
+              protected: np.ndarray | None = None, skin_start: bool = False,
+              activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0) -> DesignSetup:
         """Precompute areas, filter, adjacency and clutch ends for ``model``."""
         X, F = model.garment_rest, model.garment_faces
         areas = triangle_areas(X, F)
@@ -90,7 +97,8 @@ class DesignSetup:
         loops = tuple(np.unique(on_vertex[loop].indices) for loop in boundary_loops(F))
         return cls(model, dict(motions), objective, params, solver, evolution_solver, protected, areas, filt,
                    face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0,
-                   attached.astype(np.int64), loops, skin_start)
+                   attached.astype(np.int64), loops, skin_start,
+                   {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout))
 
     @property
     def n_clutches(self) -> int:
@@ -101,13 +109,31 @@ class DesignSetup:
         """[(faces under end A, faces under end B)] per clutch (the metrics' links)."""
         return [(e.a, e.b) for e in self.ends]
 
+    def on_activation(self, motion: str) -> np.ndarray:
+        """(K,) the activation of ``motion``'s ON state: its set, or every clutch."""
+        g = self.activation.get(motion)
+        return np.ones(self.n_clutches) if g is None else g
+
+    def selective(self) -> bool:
+        """Whether some motion switches on other clutches than all."""
+        return any(not np.all(self.on_activation(m) == 1.0) for m in self.motions)
+
     def states(self, motions=None) -> list[tuple[StateKey, SimState]]:
-        """[((motion, state), SimState)] the objective needs, for ``motions`` (default all)."""
+        """[((motion, state), SimState)] the objective needs, for ``motions`` (default all):
+        ON (the motion's activation set), OFF, or none; with a lockout, the motion under
+        every other motion's set that differs from its own (``lock:OTHER``)."""
         out = []
         for name in motions or self.motions:
             for s in states_needed(self.objective):
-                g = ACTIVATION[s] * np.ones(self.n_clutches)
+                g = self.on_activation(name) if s == "on" else np.zeros(self.n_clutches)
                 out.append(((name, s), SimState.create(self.motions[name], g, name=f"{name}[{s}]")))
+            if self.objective == "active" and self.lockout > 0:
+                own = self.on_activation(name)
+                for other in self.motions:
+                    g = self.on_activation(other)
+                    if other != name and not np.array_equal(g, own):
+                        label = f"{LOCK}{other}"
+                        out.append(((name, label), SimState.create(self.motions[name], g, name=f"{name}[{label}]")))
         return out
 
     def options(self, iteration: int, target: float) -> SolverOptions:
@@ -140,7 +166,28 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
     return DesignSetup.build(model, garment_motions(body, garment, problem.motions), d.objective, d.beso, solver,
                              evolution_solver=evolution,
                              protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin),
-                             skin_start=problem.solver.skin_start)
+                             skin_start=problem.solver.skin_start,
+                             activation=activation_vectors(problem, [c.name for c in use]),
+                             lockout=d.lockout if d.objective == "active" else 0.0)
+
+
+def activation_vectors(problem: Problem, names: list[str]) -> dict[str, np.ndarray]:
+    """{motion: (K,) activation} from ``problem``'s [motions.activation], the clutches in the
+    order ``names``; a clutch the file does not name stays off.  An unknown clutch name ->
+    KgarmentError naming the motion and the clutches there are."""
+    out = {}
+    for motion in problem.motions:
+        v = problem.activation_of(motion)
+        if v is None:
+            continue
+        if not names:
+            raise KgarmentError(f"[motions.activation] {motion}: the problem has no clutches to switch")
+        bad = [n for n in v if n not in names]
+        if bad:
+            raise KgarmentError(f"[motions.activation] {motion}: unknown clutch {bad[0]!r}; "
+                                f"the clutches are: {', '.join(names)}")
+        out[motion] = np.array([v.get(n, 0.0) for n in names])
+    return out
 
 
 def protected_faces(garment: Garment, strips, attachments: bool, margin: float) -> np.ndarray | None:

@@ -65,7 +65,8 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
         mats.setdefault("preset", solver.pop("preset"))
     materials = section(MaterialSpec, "materials", mats, {"preset": PRESET_NAMES}, {})
     solver = section(SolverSpec, "solver", solver, {"method": METHODS}, C.SOLVER_RANGES)
-    return Problem(body, names, user, garment, clutches, design, solver, materials, source)
+    activation = _activation(data.get("motions", {}).get("activation", {}), names)
+    return Problem(body, names, user, garment, clutches, design, solver, materials, source, activation)
 
 
 def check_keys(section_name: str, d: dict, allowed) -> None:
@@ -167,7 +168,7 @@ def _user_motion(name: str, d: dict) -> Motion:
 
 
 def _motions(m: dict, body: BodySpec) -> tuple[tuple[Motion, ...], tuple[str, ...]]:
-    check_keys("motions", m, ("use", "define"))
+    check_keys("motions", m, ("use", "define", "activation"))
     define = m.get("define", {})
     if not isinstance(define, dict) or not all(isinstance(v, dict) for v in define.values()):
         raise KgarmentError("[motions] define must hold tables: [motions.define.NAME] rotations = [...]")
@@ -178,6 +179,37 @@ def _motions(m: dict, body: BodySpec) -> tuple[tuple[Motion, ...], tuple[str, ..
         raise KgarmentError(f"[motions] use = {use!r} must be a list of motion names, e.g. use = [\"arms_raise\"]")
     names = _check_motions(tuple(use), body, MotionLibrary({u.name: u for u in user}))
     return user, names
+
+
+def _activation(a, motions: tuple[str, ...]) -> tuple[tuple[str, tuple[tuple[str, float], ...]], ...]:
+    """[motions.activation]: per motion of ``use``, the clutches switched on: a list of names
+    (each fully on) or a table {name = value in [0, 1]}.  Clutch names are checked when the
+    clutches are built (:func:`kgarment.design.setup.activation_vectors`)."""
+    if not isinstance(a, dict):
+        raise KgarmentError("[motions.activation] must be a table: MOTION = [\"clutch\", ...] or "
+                            "MOTION = {clutch = value}")
+    out = []
+    for motion, v in a.items():
+        if motion not in motions:
+            raise KgarmentError(f"[motions.activation] {motion!r} is not a motion of this problem; "
+                                f"allowed: {', '.join(motions)}")
+        where = f"[motions.activation] {motion}"
+        if isinstance(v, (list, tuple)):
+            if not all(isinstance(n, str) for n in v):
+                raise KgarmentError(f"{where} = {v!r} must list clutch names")
+            v = {n: 1.0 for n in v}
+        if not isinstance(v, dict):
+            raise KgarmentError(f"{where} = {v!r} must be a list of clutch names or a table {{name = value}}")
+        pairs = []
+        for n, x in v.items():
+            if isinstance(x, bool) or not isinstance(x, (int, float)) or not (0.0 <= float(x) <= 1.0):
+                raise KgarmentError(f"{where}: {n} = {x!r} is outside [0, 1]")
+            pairs.append((str(n), float(x)))
+        if not any(x > 0 for _, x in pairs):
+            raise KgarmentError(f"{where} switches no clutch on (an empty set); name at least one clutch, "
+                                f"or leave the motion out to switch all of them")
+        out.append((motion, tuple(pairs)))
+    return tuple(out)
 
 
 def _check_motions(names: tuple[str, ...], body: BodySpec, library: MotionLibrary) -> tuple[str, ...]:
@@ -235,6 +267,7 @@ class _DesignOwn:
     objective: str = "active"
     protect_attachments: bool = False
     protect_clutch_margin: float = 0.0
+    lockout: float = 0.0
 
 
 def _clutches(c: dict, base: Path) -> ClutchesSpec:
@@ -266,6 +299,8 @@ def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
         if b.rig:
             body["rig"] = str(Path(b.rig).resolve())
     motions: dict = {"use": list(problem.motions)}
+    if problem.activation:
+        motions["activation"] = {m: dict(v) for m, v in problem.activation}
     if problem.user_motions:
         motions["define"] = {
             m.name: {"keyframes": [[{"bone": r.bone, "axis": r.axis if isinstance(r.axis, str) else list(r.axis),
@@ -293,6 +328,7 @@ def override(problem: Problem, *, motions=None, template: str | None = None, sub
     changes: dict = {}
     if motions:
         changes["motions"] = _check_motions(tuple(motions), problem.body, problem.library())
+        changes["activation"] = tuple((m, v) for m, v in problem.activation if m in changes["motions"])
     g = problem.garment
     if template is not None:
         g = _garment({"template": template, "subdivision": g.subdivision}, Path("."))

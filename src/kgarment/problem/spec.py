@@ -98,18 +98,22 @@ class DesignSpec:
     objective : "active" (the paper: ON - OFF), "passive" (EG 2022, no clutches) or
     "compliance" (ON only);  beso : BesoParams (its fields are flat keys of [design]);
     protect_attachments : keep the attachment rings reinforced;
-    protect_clutch_margin : metres around clutch anchors kept reinforced (0: off).
+    protect_clutch_margin : metres around clutch anchors kept reinforced (0: off);
+    lockout : weight of the penalty on the energy that other motions' activation sets
+    store in a motion (0: none; :mod:`kgarment.design.objective`).
     """
 
     objective: str = "active"
     beso: BesoParams = field(default_factory=BesoParams)
     protect_attachments: bool = False
     protect_clutch_margin: float = 0.0
+    lockout: float = 0.0
 
     def flat(self) -> dict:
         """The [design] table as written in a problem file (BESO fields flattened)."""
         out = {"objective": self.objective, **asdict(self.beso)}
-        out.update(protect_attachments=self.protect_attachments, protect_clutch_margin=self.protect_clutch_margin)
+        out.update(protect_attachments=self.protect_attachments, protect_clutch_margin=self.protect_clutch_margin,
+                   lockout=self.lockout)
         return out
 
 
@@ -176,6 +180,12 @@ class Problem:
     solver: SolverSpec = field(default_factory=SolverSpec)
     materials: MaterialSpec = field(default_factory=MaterialSpec)
     source: Path | None = None
+    activation: tuple[tuple[str, tuple[tuple[str, float], ...]], ...] = ()
+
+    def activation_of(self, motion: str) -> dict[str, float] | None:
+        """{clutch name: activation in [0, 1]} switched on in ``motion``
+        ([motions.activation]); None: every clutch (the default)."""
+        return next((dict(v) for m, v in self.activation if m == motion), None)
 
     def library(self) -> MotionLibrary:
         return MotionLibrary({m.name: m for m in self.user_motions})
@@ -200,6 +210,8 @@ class Problem:
         else:
             lines.append(f"  rest: {self.body.rest}; rig: {self.body.rig}")
         lines.append(f"motions: {', '.join(self.motions)}")
+        for m, v in self.activation:
+            lines.append(f"  {m} switches on: " + ", ".join(n if a == 1.0 else f"{n} {a:g}" for n, a in v))
         g = self.garment
         lines.append(f"garment: {g.template or g.mask}; subdivision {g.subdivision}"
                      + (f"; attach {list(g.attach)}" if g.attach else ""))

@@ -1,0 +1,67 @@
+"""Activation sets per motion ([motions.activation]) and the lockout penalty: the states the
+objective needs, and how their energies and sensitivities combine."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kgarment.design.objective import combine_sensitivities, objective_value
+from kgarment.design.setup import DesignSetup
+from kgarment.problem import BesoParams
+from kgarment.sim import SolverOptions, build_model
+from kgarment.sim.synthetic import Tube
+
+
+def tube_setup(activation=None, lockout=0.0, objective="active"):
+    tube = Tube(0.05, 0.0, 0.3, 16, 9)
+    clutches = [tube.clutch("a", 0.0, 0.08, 0.22, 0.01, 8), tube.clutch("b", np.pi, 0.08, 0.22, 0.01, 8)]
+    model = build_model(tube.vertices, tube.faces, clutches, preset="paper")
+    motions = {"pull": tube.motion("pull", 0.05, 0.0), "twist": tube.motion("twist", 0.0, 0.3)}
+    return DesignSetup.build(model, motions, objective, BesoParams(), SolverOptions(), activation=activation,
+                             lockout=lockout)
+
+
+def test_without_sets_every_motion_switches_every_clutch():
+    s = tube_setup()
+    keyed = dict(s.states())
+    assert list(keyed) == [("pull", "on"), ("pull", "off"), ("twist", "on"), ("twist", "off")]
+    np.testing.assert_array_equal(keyed[("pull", "on")].activation, [1.0, 1.0])
+    np.testing.assert_array_equal(keyed[("twist", "off")].activation, [0.0, 0.0])
+    assert not s.selective()
+
+
+def test_sets_and_lock_states():
+    """Each motion's ON state is its set; with a lockout each motion is also solved under
+    the other's set (and not where two motions share a set)."""
+    sets = {"pull": np.array([1.0, 0.0]), "twist": np.array([0.0, 0.5])}
+    keyed = dict(tube_setup(sets, lockout=1.0).states())
+    assert list(keyed) == [("pull", "on"), ("pull", "off"), ("pull", "lock:twist"),
+                           ("twist", "on"), ("twist", "off"), ("twist", "lock:pull")]
+    np.testing.assert_array_equal(keyed[("pull", "on")].activation, [1.0, 0.0])
+    np.testing.assert_array_equal(keyed[("pull", "lock:twist")].activation, [0.0, 0.5])
+    np.testing.assert_array_equal(keyed[("twist", "lock:pull")].activation, [1.0, 0.0])
+    assert list(dict(tube_setup(sets, lockout=0.0).states())) == [("pull", "on"), ("pull", "off"),
+                                                                   ("twist", "on"), ("twist", "off")]
+    same = {"pull": np.array([1.0, 0.0]), "twist": np.array([1.0, 0.0])}
+    assert all(not k[1].startswith("lock:") for k in dict(tube_setup(same, lockout=1.0).states()))
+    # the compliance objective has no OFF states and no lockout
+    assert list(dict(tube_setup(sets, lockout=1.0, objective="compliance").states())) == [("pull", "on"),
+                                                                                          ("twist", "on")]
+
+
+def test_the_lockout_subtracts_what_other_sets_store():
+    """Per motion: (ON - OFF - w * sum(LOCK - OFF)) / max(ON sensitivity), summed; the
+    scalar objective likewise over the fully reinforced garment's ON energy."""
+    rng = np.random.default_rng(3)
+    a = {(m, s): rng.random(7) for m in ("pull", "twist") for s in ("on", "off", "lock:x")}
+    w = 0.7
+    want = sum((a[(m, "on")] - a[(m, "off")] - w * (a[(m, "lock:x")] - a[(m, "off")])) / a[(m, "on")].max()
+               for m in ("pull", "twist"))
+    np.testing.assert_allclose(combine_sensitivities("active", a, ["pull", "twist"], w), want)
+    plain = sum((a[(m, "on")] - a[(m, "off")]) / a[(m, "on")].max() for m in ("pull", "twist"))
+    np.testing.assert_allclose(combine_sensitivities("active", a, ["pull", "twist"], 0.0), plain)
+    e = {("pull", "on"): 5.0, ("pull", "off"): 1.0, ("pull", "lock:x"): 3.0}
+    ref = {("pull", "on"): 10.0}
+    assert objective_value("active", e, ref, ["pull"], w) == pytest.approx((5 - 1 - w * (3 - 1)) / 10)
+    assert objective_value("active", e, ref, ["pull"]) == pytest.approx(0.4)
