@@ -13,8 +13,9 @@ from test_fabricate_support import band_design, sleeve, sleeve_clutches, write_r
 from kgarment.cli.fabricate import add_parsers as add_parser
 from kgarment.errors import KgarmentError
 
-FILES = ("cut_patterns.svg", "cut_patterns.dxf", "cut_patterns.pdf", "design_clean.glb", "design_clean.obj",
-         "design_clean.ply", "design_clean.npz", "bom.md", "bom.csv", "report.md", "report.json")
+FILES = ("cut_patterns.svg", "cut_patterns.dxf", "cut_patterns.pdf", "cut_patterns.png", "placement.svg",
+         "placement.png", "placement_3d.png", "design_clean.glb", "design_clean.obj", "design_clean.ply",
+         "design_clean.npz", "bom.md", "bom.csv", "report.md", "report.json")
 
 
 def fabricate_cli(*argv) -> int:
@@ -92,4 +93,7 @@ def test_resimulation_reports_rho_before_and_after(run, capsys):
     for r in rep["rho"]:
         assert np.isfinite(r["rho_before"]) and np.isfinite(r["rho_after"]) and r["rho_after"] > 0
     assert "Re-simulation" in (run / "fab_sim" / "report.md").read_text()
+    # the cleaned design's per-clutch loads reach the report and the sheet's legend
+    assert {c["clutch"] for c in rep["clutch_loads"]["clutches"]} == {"elbow_outer.R"}
+    assert "load not evaluated" not in (run / "fab_sim" / "cut_patterns.svg").read_text()
     assert "rho arm_flexion.right" in capsys.readouterr().out

@@ -37,6 +37,7 @@ def cmd_fabricate(args) -> int:
         FabricationOptions,
         check_design_mesh,
         fabricate,
+        with_loads,
         write_fabrication,
     )
     from kgarment.fabricate.cleanup import CleanupOptions
@@ -48,7 +49,8 @@ def cmd_fabricate(args) -> int:
     options = FabricationOptions(
         cleanup=CleanupOptions(args.min_island_area, args.max_hole_area, args.min_width),
         patterns=PatternOptions(method=args.method, max_distortion=args.max_distortion, max_cuts=args.max_cuts),
-        smooth_iterations=0 if args.no_smooth else 10, sheet_width=args.sheet_width, paper=args.paper)
+        smooth_iterations=0 if args.no_smooth else 10, sheet_width=args.sheet_width, paper=args.paper,
+        allowance=args.allowance)
     p = load_problem(pfile)
     out = Path(args.out) if args.out else default_out
     check_replaceable(out, args.force)  # fail before the slow part
@@ -61,20 +63,28 @@ def cmd_fabricate(args) -> int:
         check_design_mesh(src.file, garment)
     print(f"design: {label}: {100 * (design > 0.5).mean():.1f}% of {garment.n_faces} faces of {garment.name} "
           f"reinforced; {len(strips)} clutches")
-    fab = fabricate(garment, strips, design, options, title=f"kgarment {garment.name} - {label}")
+    fab = fabricate(garment, strips, design, options, title=f"kgarment {garment.name} - {label}", body=body)
     c = fab.cleanup
     print(f"clean-up: {c.holes_filled} holes filled, {c.faces_opened} faces removed by the minimum width, "
           f"{c.islands_removed} islands removed; reinforced {1e4 * c.area_before:.1f} -> {1e4 * c.area_after:.1f} cm^2")
     evaluation = None
     if not args.no_resimulate:
-        print("re-simulating the design before and after the clean-up ...")
+        print("re-simulating the design before and after the clean-up, and each clutch's load ...")
         ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device)
-        before = [s.row() for s in ev.evaluate(design).states]
-        after = before if c.changed_faces == 0 else [s.row() for s in ev.evaluate(fab.clean_design).states]
+        same = c.changed_faces == 0
+        ev_before = ev.evaluate(design, loads=same)
+        ev_after = ev_before if same else ev.evaluate(fab.clean_design, loads=True)
+        before, after = [s.row() for s in ev_before.states], [s.row() for s in ev_after.states]
         evaluation = (before, after)
+        fab = with_loads(fab, ev_after.loads)
         for b, a in zip(before, after):
             flag = "" if b["converged"] and a["converged"] else "  (NOT converged)"
             print(f"  rho {b['motion']:22s} {b['state']:5s} {b['rho']:7.3f} -> {a['rho']:7.3f}{flag}")
+        if ev_after.loads is not None:
+            print("clutch loads of the cleaned design (share of the ON - OFF energy / tension; *: loaded):")
+            print(ev_after.loads.table())
+    for n in fab.sheet.clutches:
+        print(f"  {n.tag} {n.name}: {n.status}")
     written: list[Path] = []
 
     def fill(tmp: Path) -> None:  # written beside the old folder, then swapped in
@@ -119,5 +129,8 @@ def add_parsers(sub) -> None:
     g.add_argument("--max-cuts", type=integer(0, 64), default=4, help="at most this many seams per piece (default 4)")
     g.add_argument("--no-smooth", action="store_true", help="keep the raw triangle-edge outlines")
     g.add_argument("--sheet-width", type=number(50.0, 10000.0), default=600.0, help="cutting sheet width, mm (default 600)")
+    g.add_argument("--allowance", type=number(0.0, 100.0), default=0.0, metavar="MM",
+                   help="seam allowance around every piece and panel, mm (default 0: heat-pressed film needs "
+                        "none; sewn fabric about 10)")
     g.add_argument("--paper", default="a4", choices=("a4", "letter"), help="PDF page size (default a4)")
     sp.set_defaults(func=cmd_fabricate)

@@ -8,13 +8,18 @@ Stages (each a module, arrays in and frozen dataclasses out):
 ``flatten``    LSCM then ARAP (libigl), scaled to keep lengths; distortion measures
 ``patterns``   pieces flattened, and cut along short seams while too distorted
 ``outline``    the jagged boundary smoothed into curves
-``layout``     the 1:1 cutting sheet in millimetres with buttons, arrows and notches
-``cutfiles``   SVG and DXF; ``preview`` the tiled PDF; ``export3d`` GLB/OBJ/PLY;
+``layout``     the 1:1 cutting sheet in millimetres with buttons, arrows, notches and a
+               seam allowance; ``annotate`` its legend, clutch notes and labels (placed
+               by ``labels`` so that none overlap)
+``panels``     the base garment's panels (front, back, sleeves), flattened;
+``placement``  where every piece and clutch goes on them, flat (1:1) and in 3D
+``cutfiles``   SVG and DXF; ``tiling`` and ``preview`` the tiled PDF; ``export3d`` GLB/OBJ/PLY;
 ``bom``        bill of materials and report; ``pipeline`` all of it
 
 Typical use::
 
-    fab = fabricate(garment, strips, design)      # design (m,): 1 reinforced, 1e-3 soft
+    fab = fabricate(garment, strips, design, body=body)  # design (m,): 1 reinforced, 1e-3 soft
+    fab = with_loads(fab, evaluator.evaluate(fab.clean_design, loads=True).loads)  # optional
     write_fabrication(fab, "runs/fab")
 """
 
@@ -28,6 +33,7 @@ from kgarment.fabricate.pipeline import (
     FabricationOptions,
     check_design_mesh,
     fabricate,
+    with_loads,
     write_fabrication,
 )
 
@@ -52,5 +58,6 @@ __all__ = [
     "make_patterns",
     "patch_mesh",
     "split_patches",
+    "with_loads",
     "write_fabrication",
 ]

@@ -19,7 +19,7 @@ from kgarment.fabricate.cutfiles import COLORS, WIDTH_MM
 from kgarment.fabricate.layout import BUTTON_MM, Sheet
 from kgarment.fabricate.tiling import FOOTER_MM, MARGIN_MM, OVERLAP_MM, PAPERS, Tile, Tiling, tiling
 
-__all__ = ["INCH", "PAPERS", "Tile", "draw_sheet", "page_size", "tile_figure", "tiles", "write_pdf"]
+__all__ = ["INCH", "PAPERS", "Tile", "draw_sheet", "page_size", "tile_figure", "tiles", "write_pdf", "write_png"]
 
 INCH = 25.4
 PT = 72.0 / INCH  # points per millimetre
@@ -110,7 +110,8 @@ def overview_figure(sheet: Sheet, grid: Tiling, paper: str):
              "   with its edge on their dashed line, the registration marks (circle and cross) on theirs; tape.",
              "4. Red: cut; blue: marks; green: the 100 mm square. The legend lists every clutch (C1, ...)."]
     if empty:
-        steps.append(f"Tiles {', '.join(empty)} hold nothing; they are printed to keep the grid whole and may be skipped.")
+        which = f"Tiles {', '.join(empty)} hold" if len(empty) > 1 else f"Tile {empty[0]} holds"
+        steps.append(f"{which} nothing: printed to keep the grid whole, it may be skipped.")
     for i, s in enumerate(steps):
         fig.text(0.06, 0.15 - 0.022 * i, s, fontsize=7)
     return fig
@@ -193,4 +194,24 @@ def write_pdf(sheet: Sheet, path, paper: str = "a4") -> Path:
             fig = tile_figure(sheet, t, grid.pw, grid.ph, i, len(ts), grid)[0]
             pdf.savefig(fig)
             plt.close(fig)
+    return path
+
+
+def write_png(sheet: Sheet, path, px: int = 1000) -> Path:
+    """A preview of the whole sheet (not to scale), ``px`` pixels on its longer side."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scale = px / 100 * INCH / max(sheet.width, sheet.height)  # paper mm per sheet mm at 100 dpi
+    fig = plt.figure(figsize=(sheet.width * scale / INCH, sheet.height * scale / INCH))
+    ax = fig.add_axes((0, 0, 1, 1))
+    draw_sheet(ax, sheet, scale)
+    ax.set_xlim(0, sheet.width)
+    ax.set_ylim(0, sheet.height)
+    ax.axis("off")
+    path = Path(path)
+    fig.savefig(path, dpi=100, facecolor="white")
+    plt.close(fig)
     return path
