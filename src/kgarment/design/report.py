@@ -63,11 +63,11 @@ def finish_run(run: Path, setup, st, body, garment, strips, iteration: int, equi
     for key, s in keyed:
         r = equilibria[key]
         gx, cx = setup.model.split(r.x)
-        paths.append(render_scene(final / f"energy_{key[0]}_{key[1]}.png", body.vertices(key[0]), body.faces, gx,
+        paths.append(render_scene(final / f"energy_{key[0]}_{key[1].replace(':', '-')}.png", body.vertices(key[0]), body.faces, gx,
                                   garment.faces, face_values=r.garment_density, vmin=0.0, vmax=vmax[key[0]],
                                   clutches=[(x, c.faces) for c, x in zip(setup.model.clutches, cx)],
                                   clutch_activation=s.activation, value_label="energy density (J/m^2)",
-                                  title=f"{garment.name}: {key[0]}, clutches {key[1]}"))
+                                  title=f"{garment.name}: {key[0]}, clutches {_state_title(key[1])}"))
     return paths
 
 
@@ -90,3 +90,8 @@ def write_equilibrium(out: Path, stem: str, body_vertices: np.ndarray, body_face
                               clutches=[(x, s.faces) for s, x in zip(model.clutches, cx)],
                               clutch_activation=activation, value_label="energy density (J/m^2)", title=title))
     return paths
+
+
+def _state_title(state: str) -> str:
+    """A state label in words: "on", "off", or "as in arms_raise" for a lock state."""
+    return f"as in {state.split(':', 1)[1]}" if state.startswith("lock:") else state
