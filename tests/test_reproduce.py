@@ -153,3 +153,33 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
     assert rc == 0, err
     assert {p: p.stat().st_mtime_ns for p in rep.glob("runs/*/checkpoint.npz")} == stamp
     assert (rep / "evaluations.json").read_text() == evals
+
+
+def _plan(rows):
+    """A clutch-set table as kgarment plan writes it: rows (motion, clutches, resistance J)."""
+    return {"clutches": ["a", "b"], "keep": 0.9, "motions": {},
+            "sets": [{"motion": m, "clutches": c, "resistance_J": r, "fraction": None} for m, c, r in rows]}
+
+
+def _exp(name, plan, rho, activation=None):
+    return {"name": name, "group": "sleeve", "multi": True, "motions": ["flex", "ext"], "plan": plan,
+            "activation": activation or {}, "evaluations": {"ours": {"rho": {m: {"on": v, "off": 0.1}
+                                                                           for m, v in rho.items()}}}}
+
+
+def test_the_selective_target_from_the_clutch_set_tables():
+    """Own set resistance against the other set's and the all-ON design's (numbers chosen:
+    flexion 4 J own, 1 J from extension's set (25%), all-ON design 4.5 J (89%))."""
+    from kgarment.reproduce.targets import selective_targets
+
+    base = _exp("sleeve_two_motions", _plan([("flex", ["a", "b"], 4.5), ("ext", ["a", "b"], 10.0)]),
+                {"flex": 1.2, "ext": 1.5})
+    sel = _exp("sleeve_selective", _plan([("flex", ["a"], 4.0), ("flex", ["b"], 1.0), ("ext", ["b"], 9.0),
+                                          ("ext", ["a"], 0.5)]), {"flex": 1.1, "ext": 1.3},
+               {"flex": {"a": 1.0}, "ext": {"b": 1.0}})
+    (t,) = selective_targets({"sleeve_two_motions": base, "sleeve_selective": sel})
+    assert t.ok and "flex: rho ON 1.10, other sets 25% of its own, 89% of the all-ON design" in t.detail
+    sel["plan"]["sets"][1]["resistance_J"] = 2.5  # extension's clutch now stores 62% of flexion's own: a lock
+    (t,) = selective_targets({"sleeve_two_motions": base, "sleeve_selective": sel})
+    assert not t.ok and "other sets 62% of its own" in t.detail
+    assert selective_targets({"sleeve_two_motions": base}) == []  # no activation sets, no target

@@ -50,7 +50,8 @@ class Control:
         return self.gain >= UNCONTROLLABLE
 
     def advice(self) -> str:
-        return (f"motion {self.motion}: the clutches can hardly be felt in it: switching them ON changes the fully "
+        who = "the clutches" if self.clutch == "all" else f"its activation set ({self.clutch.replace('+', ', ')})"
+        return (f"motion {self.motion}: {who} can hardly be felt in it: switching them ON changes the fully "
                 f"reinforced garment's energy by {100 * self.gain:.2g}% (the paper's shirt motions: 1-3%; below "
                 f"{100 * UNCONTROLLABLE:g}% is reported). Place a clutch where this motion stretches the garment "
                 "(kgarment clutches suggest), attach the garment where the motion pulls it (a cuff or a band), "
@@ -73,7 +74,13 @@ def control_check(setup: DesignSetup, warm: dict[str, np.ndarray] | None = None)
     full = solve_states(setup.model, np.ones(len(setup.areas)), states, warm_start=[warm.get(s.name) for s in states],
                         options=setup.solver)
     energy = {k: r.total_energy for (k, _), r in zip(keyed, full)}
-    return [Control(m, energy[(m, "on")], energy[(m, "off")]) for m in setup.motions]
+    names = [c.name for c in setup.model.clutches]
+
+    def which(m: str) -> str:
+        g = setup.on_activation(m)
+        return "all" if np.all(g == 1.0) else "+".join(n for n, a in zip(names, g) if a > 0)
+
+    return [Control(m, energy[(m, "on")], energy[(m, "off")], which(m)) for m in setup.motions]
 
 
 def clutch_control(setup: DesignSetup, names: list[str]) -> list[Control]:

@@ -92,3 +92,17 @@ class CachedEvaluator:
         if self.cache is not None:
             self.cache.put(key, out)
         return out
+
+    def plan(self, design: np.ndarray) -> dict:
+        """The control table of ``design`` (m,) (:func:`kgarment.design.plan.make_plan`: every
+        clutch set in every motion) as JSON, cached like the evaluations."""
+        from kgarment.design.plan import make_plan
+
+        design = np.asarray(design, dtype=np.float64)
+        key = f"{self.name}|{design_key(design)}|plan"
+        if self.cache is not None and (hit := self.cache.get(key)) is not None:
+            return hit
+        out = make_plan(self.evaluator, design).to_json()
+        if self.cache is not None:
+            self.cache.put(key, out)
+        return out

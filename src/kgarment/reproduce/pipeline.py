@@ -39,6 +39,7 @@ from kgarment.reproduce.experiments import (
 from kgarment.reproduce.targets import target_flags
 
 log = logging.getLogger(__name__)
+PLAN_CLUTCHES = 3  # multi-motion experiments with at most this many clutches get their clutch-set table
 
 
 def _render_design(path: Path, ev: CachedEvaluator, design: np.ndarray, title: str) -> str:
@@ -86,11 +87,14 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
              "paper": {m: list(v) for m, v in exp.paper.items()}, "budget": budget,
              "garment": g.name, "faces": int(g.n_faces), "clutches": len(ev.strips), "motions": ev.motions,
              "states": ev.n_states, "run": _run_summary(ours), "compliance_run": _run_summary(comp),
+             "activation": {m: dict(v) for m, v in problem.activation}, "lockout": problem.design.lockout,
              "evaluations": {}, "images": {}}
     for kind, d in designs.items():
         log.info("%s: evaluating the %s design", exp.name, kind)
         # clutch loads where the report and the targets read them: ours against the manual baseline
         entry["evaluations"][kind] = ev.evaluate(d, kind, loads=kind in ("ours", "manual"))
+    if exp.multi and len(ev.strips) <= PLAN_CLUTCHES:
+        entry["plan"] = ev.plan(ours.design)
     entry["evaluations"]["random"] = [ev.evaluate(random_design(g.rest_vertices, g.faces, budget, seed), f"random {seed}")
                                       for seed in range(res.seeds)]
     for kind in ("ours", "compliance", "manual"):

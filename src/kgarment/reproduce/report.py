@@ -70,6 +70,38 @@ def design_rows(e: dict) -> list[list[str]]:
     return rows
 
 
+def plan_lines(e: dict) -> list[str]:
+    """An experiment's activation sets and our design's clutch-set table (``kgarment plan``)."""
+    md = []
+    if e.get("activation"):
+        sets = "; ".join(f"{m} -> {', '.join(v)}" for m, v in e["activation"].items())
+        md += [f"Activation sets: {sets} (other motions: every clutch); lockout {e.get('lockout', 0):g}.", ""]
+    plan = e.get("plan")
+    if not plan:
+        return md
+    motions = list(plan["motions"])
+    md += ["Clutch sets (`kgarment plan` of our design): garment energy with the set ON minus all OFF, J "
+           "(share of all clutches ON); **bold**: the set recommended for the motion (the fewest clutches "
+           f"keeping {plan['keep']:.0%}).", ""]
+    rec = {m: tuple(plan["motions"][m]["recommended"]["clutches"]) for m in motions}
+    rows, seen = [], []
+    for r in plan["sets"]:
+        if tuple(r["clutches"]) not in seen:
+            seen.append(tuple(r["clutches"]))
+    for key in seen:
+        cells = []
+        for m in motions:
+            r = next((x for x in plan["sets"] if x["motion"] == m and tuple(x["clutches"]) == key), None)
+            if r is None:
+                cells.append("-")
+                continue
+            frac = "" if r["fraction"] is None else f" ({r['fraction']:.0%})"
+            text = f"{r['resistance_J']:.3g}{frac}"
+            cells.append(f"**{text}**" if rec[m] == key else text)
+        rows.append([", ".join(key), *cells])
+    return md + md_table(["set ON", *motions], rows)
+
+
 def build_markdown(doc: dict, figures: dict) -> str:
     exps = doc["experiments"]
     res = doc["resolution"]
@@ -111,6 +143,7 @@ def build_markdown(doc: dict, figures: dict) -> str:
                 md += ["Clutch loads: share of the ON - OFF garment energy with only that clutch ON / tension "
                        "with all ON (* loaded: share at least 0.10).", ""]
                 md += md_table(["motion", "clutch", *kinds], loads)
+            md += plan_lines(e)
             imgs = [f"![{k}]({e['images'][k]})" for k in ("ours", "manual", "compliance", "progress")
                     if k in e["images"]]
             md += [" ".join(imgs), ""]

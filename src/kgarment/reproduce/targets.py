@@ -10,6 +10,10 @@ a sentence with the numbers behind it.
 ``diagonal``             the cross-evaluation's largest value of each row on the diagonal
 ``beats_manual``         ours >= 1.5x the manual baseline's rho ON and clutch tension (the
                          largest in the motion) on every motion
+``selective``            (issue #22) a design with activation sets: each motion's own set gives
+                         rho ON > 1, another motion's set stores at most half of its own set's
+                         resistance in it, and it keeps >= 80% of the all-ON multi-motion
+                         design's resistance per motion (``kgarment plan`` of both)
 """
 
 from __future__ import annotations
@@ -105,6 +109,43 @@ def evaluate_targets(doc: dict) -> list[Target]:
         out.append(Target("beats_manual", w[0] >= 1.5, "ours has at least 1.5x the manual baseline's rho ON and "
                           f"clutch tension on every motion (smallest: {w[3]} / {w[4]}, rho {w[1]:.2f}x, "
                           f"tension {w[2]:.2f}x)"))
+    out += selective_targets(exps)
+    return out
+
+
+def _resistance(plan: dict, motion: str, clutches) -> float | None:
+    key = sorted(clutches)
+    return next((r["resistance_J"] for r in plan["sets"] if r["motion"] == motion and sorted(r["clutches"]) == key),
+                None)
+
+
+def selective_targets(exps: dict) -> list[Target]:
+    """The ``selective`` target of every experiment with activation sets and a clutch-set
+    table, against its group's all-ON multi-motion design."""
+    from kgarment.reproduce.catalog import MULTI_OF_GROUP
+
+    out = []
+    for e in exps.values():
+        plan, sets = e.get("plan"), e.get("activation")
+        base = exps.get(MULTI_OF_GROUP.get(e["group"], ""), {}).get("plan")
+        if not plan or not sets:
+            continue
+        every = plan["clutches"]
+        own = {m: list(sets.get(m, every)) for m in e["motions"]}
+        bad, facts = [], []
+        for m in e["motions"]:
+            mine = _resistance(plan, m, own[m]) or 0.0
+            rho = _on(e, "ours", m)
+            locks = [(o, _resistance(plan, m, own[o]) or 0.0) for o in e["motions"] if o != m and own[o] != own[m]]
+            worst = max((r for _, r in locks), default=0.0) / max(mine, 1e-12)
+            keep = mine / max(_resistance(base, m, every) or 0.0, 1e-12) if base else float("nan")
+            facts.append(f"{m}: rho ON {rho:.2f}, other sets {100 * worst:.0f}% of its own, "
+                         + (f"{100 * keep:.0f}% of the all-ON design" if base else "no all-ON design to compare"))
+            if not (rho > 1 and worst <= 0.5 and (not base or keep >= 0.8)):
+                bad.append(m)
+        out.append(Target("selective", not bad, f"{e['name']}: each motion's own set gives rho ON > 1, another "
+                          "motion's set stores at most half of that, and the design keeps 80% of the all-ON design's "
+                          "resistance (" + "; ".join(facts) + ")"))
     return out
 
 
