@@ -152,12 +152,13 @@ def design_progress(total: int, start: int, motions, quiet: bool):
 
 def print_evaluation(res) -> None:
     """A design's evaluation (kgarment.design.DesignEvaluation) as tables on stdout."""
-    print(f"{'motion':24s} {'state':6s} {'rho':>7s} {'E design (J)':>13s} {'E full (J)':>11s}")
+    w = max([6] + [len(r.state) for r in res.states])  # lock states: "lock:OTHER MOTION"
+    print(f"{'motion':24s} {'state':{w}s} {'rho':>7s} {'E design (J)':>13s} {'E full (J)':>11s}")
     for r in res.states:
         flag = "" if r.converged else "  (NOT converged)"
         if r.multistable:
             flag += f"  (a second equilibrium of higher energy has rho {r.other_rho:.3f})"
-        print(f"{r.motion:24s} {r.state:6s} {r.rho:7.3f} {r.energy:13.5g} {r.energy_full:11.5g}{flag}")
+        print(f"{r.motion:24s} {r.state:{w}s} {r.rho:7.3f} {r.energy:13.5g} {r.energy_full:11.5g}{flag}")
     print(f"reinforced area {100 * res.area:.1f}%; islands {res.islands} ({res.islands_with_clutches} counting "
           f"clutches as links); clutch ends on reinforcement {res.clutch_ends_supported}/{res.clutch_ends}")
     if res.loads is not None:
