@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -62,20 +62,30 @@ class SetResult:
 @dataclass(frozen=True)
 class Plan:
     """Every evaluated (motion, set), the motions and clutch names, the all-OFF energy per
-    motion (J), and whether every subset was tried (``exhaustive``)."""
+    motion (J), whether every subset was tried (``exhaustive``), and the activation sets the
+    design was made for (``designed``, [motions.activation]; empty: all clutches)."""
 
     motions: tuple[str, ...]
     clutch_names: tuple[str, ...]
     results: tuple[SetResult, ...]
     energy_off_J: dict
     exhaustive: bool
+    designed: dict = field(default_factory=dict)  # {motion: clutch names} of the problem's activation sets
 
     def sets(self, motion: str) -> list[SetResult]:
         return [r for r in self.results if r.motion == motion]
 
-    def get(self, motion: str, clutches) -> SetResult:
+    def find(self, motion: str, clutches) -> SetResult | None:
+        """The result of the set ``clutches`` (names, any order) in ``motion``; None if not evaluated."""
         key = tuple(c for c in self.clutch_names if c in set(clutches))
-        return next(r for r in self.results if r.motion == motion and r.clutches == key)
+        return next((r for r in self.results if r.motion == motion and r.clutches == key), None)
+
+    def get(self, motion: str, clutches) -> SetResult:
+        """:meth:`find`, for a set that was evaluated (KeyError otherwise)."""
+        r = self.find(motion, clutches)
+        if r is None:
+            raise KeyError((motion, tuple(clutches)))
+        return r
 
     def all_on(self, motion: str) -> SetResult:
         return self.get(motion, self.clutch_names)
@@ -101,13 +111,8 @@ class Plan:
         all-ON resistance."""
         out = []
         for m in self.motions:
-            if m == chosen.motion or not self.controllable(m):
-                continue
-            try:
-                r = self.get(m, chosen.clutches)
-            except StopIteration:
-                continue
-            if r.fraction >= lock:
+            r = self.find(m, chosen.clutches)
+            if m != chosen.motion and self.controllable(m) and r is not None and r.fraction >= lock:
                 out.append(r)
         return out
 
@@ -116,20 +121,13 @@ class Plan:
         for m in self.motions:
             s = self.smallest(m)
             per[m] = {"controllable": self.controllable(m), "energy_off_J": self.energy_off_J[m],
+                      "designed_set": list(self.designed.get(m, self.clutch_names)),
                       "best": self.best(m).row(), "recommended": s.row(),
                       "locks": {r.motion: r.fraction for r in self.locks(s)},
-                      "elsewhere": {o: self.get(o, s.clutches).row() for o in self.motions
-                                    if o != m and _has(self, o, s.clutches)}}
+                      "elsewhere": {o: self.find(o, s.clutches).row() for o in self.motions
+                                    if o != m and self.find(o, s.clutches) is not None}}
         return {"clutches": list(self.clutch_names), "exhaustive": self.exhaustive, "keep": PLAN_KEEP,
                 "lock": PLAN_LOCK, "motions": per, "sets": [r.row() for r in self.results]}
-
-
-def _has(plan: Plan, motion: str, clutches) -> bool:
-    try:
-        plan.get(motion, clutches)
-        return True
-    except StopIteration:
-        return False
 
 
 def _label(names) -> str:
@@ -197,8 +195,10 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
             frac = res / gain if gain > MIN_GAIN * abs(off.total_energy) else float("nan")
             results.append(SetResult(m, tuple(names[i] for i in idx), float(r.total_energy), float(res), float(frac),
                                      {names[i]: float(t[i]) for i in idx}, bool(r.converged)))
+    designed = {m: tuple(n for n, a in zip(names, setup.on_activation(m)) if a > 0) for m in motions
+                if not np.all(setup.on_activation(m) == 1.0)}
     return Plan(tuple(motions), names, tuple(results), {m: float(known[(m, "off")].total_energy) for m in motions},
-                K <= exhaustive_up_to)
+                K <= exhaustive_up_to, designed)
 
 
 def plan_markdown(plan: Plan, title: str) -> str:
@@ -211,7 +211,8 @@ def plan_markdown(plan: Plan, title: str) -> str:
           f"keeping {PLAN_KEEP:.0%} of the all-ON resistance; a set *locks* another motion where it resists it "
           f"with {PLAN_LOCK:.0%} or more of that motion's all-ON resistance. "
           + ("Every subset of the clutches was evaluated." if plan.exhaustive else
-             "Sets found by a greedy search per motion (more clutches than the exhaustive limit)."), "",
+             "Sets found by a greedy search per motion (more clutches than the exhaustive limit).")
+          + ("".join(f" Designed for: {m} -> {', '.join(v)}." for m, v in plan.designed.items())), "",
           "| motion | switch on | resistance (J) | of all ON | tensions (N) | locks |", "|---|---|---|---|---|---|"]
     for m in plan.motions:
         if not plan.controllable(m):
@@ -231,9 +232,8 @@ def plan_markdown(plan: Plan, title: str) -> str:
     for key in seen:
         cells = []
         for m in plan.motions:
-            try:
-                r = plan.get(m, key)
-            except StopIteration:
+            r = plan.find(m, key)
+            if r is None:
                 cells.append("-")
                 continue
             frac = "" if math.isnan(r.fraction) else f" ({r.fraction:.0%})"
