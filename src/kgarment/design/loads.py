@@ -136,7 +136,10 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
     motions = evaluator.motion_names(motions)
     known = dict(known or {})
     K = len(names)
-    ends = [(k, st) for k, st in evaluator.keyed(motions) if k[1] in ("on", "off")]  # ON: the motion's set
+    ends = []  # ON: the motion's activation set (every clutch by default); OFF: none, whatever the objective
+    for m in motions:
+        ends += evaluator.activation_states(setup.on_activation(m), [m], "on") + \
+            evaluator.activation_states(np.zeros(K), [m], "off")
     todo = [(key, st) for key, st in ends if key not in known]
     if todo:
         known.update(zip([key for key, _ in todo], evaluator.equilibria(design, todo)))

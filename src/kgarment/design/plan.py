@@ -146,6 +146,9 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
     ev = evaluator.evaluate(design, motions)
     known = {s.key: s.result for s in ev.states if s.state in ("on", "off")}
     states = {k: st for k, st in evaluator.keyed(motions) if k[1] == "on"}
+    off = [k for k in evaluator.activation_states(np.zeros(K), motions, "off") if k[0] not in known]
+    if off:  # a compliance run's evaluation has no OFF states
+        known.update(zip([k for k, _ in off], evaluator.equilibria(design, off)))
     full = tuple(range(K))
     for m in motions:  # the all-clutches set is the evaluation's ON state unless the motion has its own set
         if np.all(setup.on_activation(m) == 1.0):
