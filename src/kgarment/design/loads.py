@@ -3,8 +3,9 @@
 Per motion and clutch k (method.md section 9):
 
 * ``share``: garment energy with only clutch k ON minus all OFF, over all ON minus all
-  OFF (ON: the motion's activation set where the problem gives one).  A clutch that is not at a junction of reinforcement has share ~0 ("if clutches are
-  not at junctures, then their activation will have no effect on the user"); the only
+  OFF (ON: the motion's activation set where the problem gives one).  A clutch that is
+  not at a junction of reinforcement has share ~0 ("if clutches are not at junctures,
+  then their activation will have no effect on the user"); the only
   load path has share ~1.  Shares of several clutches need not add to 1 (paths in series
   or in parallel);
 * ``tension_N``: the force carried along the clutch at the target pose with all clutches
@@ -107,6 +108,23 @@ class LoadReport:
         return "\n".join(lines)
 
 
+def on_off_equilibria(evaluator, design: np.ndarray, motions, known: dict | None = None) -> tuple[list, dict]:
+    """([((motion, "on" | "off"), SimState)], {key: StateResult}): per motion of ``motions``
+    the ON state (its activation set, every clutch by default) and OFF (none), whatever the
+    objective, with their equilibria of ``design`` (m,) from the evaluator's two starts;
+    equilibria already in ``known`` are reused (and returned with the others)."""
+    setup = evaluator.setup
+    keyed = []
+    for m in motions:
+        keyed += evaluator.activation_states(setup.on_activation(m), [m], "on") + \
+            evaluator.activation_states(np.zeros(setup.n_clutches), [m], "off")
+    known = dict(known or {})
+    todo = [(key, st) for key, st in keyed if key not in known]
+    if todo:
+        known.update(zip([key for key, _ in todo], evaluator.equilibria(design, todo)))
+    return keyed, known
+
+
 def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> dict:
     """{(motion, label): StateResult} of ``design`` (m,) in ``keyed`` states (clutch
     activations other than all ON / all OFF, from :meth:`Evaluator.activation_states`).
@@ -134,15 +152,8 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
     model = setup.model
     names = [c.name for c in model.clutches]
     motions = evaluator.motion_names(motions)
-    known = dict(known or {})
     K = len(names)
-    ends = []  # ON: the motion's activation set (every clutch by default); OFF: none, whatever the objective
-    for m in motions:
-        ends += evaluator.activation_states(setup.on_activation(m), [m], "on") + \
-            evaluator.activation_states(np.zeros(K), [m], "off")
-    todo = [(key, st) for key, st in ends if key not in known]
-    if todo:
-        known.update(zip([key for key, _ in todo], evaluator.equilibria(design, todo)))
+    ends, known = on_off_equilibria(evaluator, design, motions, known)
     singles = []
     for m in motions:
         g_on = setup.on_activation(m)  # a clutch alone at its value in the motion's set (1 if not in it)

@@ -20,9 +20,10 @@ and, for that set, what it does to the other motions: a set *locks* another moti
 it resists it with at least :data:`PLAN_LOCK` of that motion's all-ON resistance (the
 paper's two-motion sleeve switches the opposing clutch off "to prevent full arm-locking").
 
-Equilibria come from the one design evaluator (all ON and all OFF from its two starts; a
-set starts from the all-ON equilibrium, :func:`kgarment.design.loads.activation_equilibria`),
-so the all-ON and all-OFF energies are those of ``kgarment evaluate``.
+Equilibria come from the one design evaluator (ON and all OFF from its two starts,
+:func:`kgarment.design.loads.on_off_equilibria`, as the clutch loads; a set starts from the
+ON equilibrium, :func:`kgarment.design.loads.activation_equilibria`), so the ON and all-OFF
+energies are those of ``kgarment evaluate``.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kgarment.constants import MIN_GAIN, PLAN_EXHAUSTIVE, PLAN_KEEP, PLAN_LOCK
-from kgarment.design.loads import activation_equilibria
+from kgarment.design.loads import activation_equilibria, on_off_equilibria
 from kgarment.sim import clutch_tensions
 
 
@@ -143,12 +144,8 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
     K = len(names)
     motions = evaluator.motion_names(motions)
     design = np.asarray(design, dtype=np.float64)
-    ev = evaluator.evaluate(design, motions)
-    known = {s.key: s.result for s in ev.states if s.state in ("on", "off")}
-    states = {k: st for k, st in evaluator.keyed(motions) if k[1] == "on"}
-    off = [k for k in evaluator.activation_states(np.zeros(K), motions, "off") if k[0] not in known]
-    if off:  # a compliance run's evaluation has no OFF states
-        known.update(zip([k for k, _ in off], evaluator.equilibria(design, off)))
+    keyed, known = on_off_equilibria(evaluator, design, motions)
+    states = dict(keyed)
     full = tuple(range(K))
     for m in motions:  # the all-clutches set is the evaluation's ON state unless the motion has its own set
         if np.all(setup.on_activation(m) == 1.0):
