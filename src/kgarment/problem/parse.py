@@ -268,6 +268,7 @@ class _DesignOwn:
     protect_attachments: bool = False
     protect_clutch_margin: float = 0.0
     lockout: float = 0.0
+    balance: float = 0.0
 
 
 def _clutches(c: dict, base: Path) -> ClutchesSpec:

@@ -100,7 +100,9 @@ class DesignSpec:
     protect_attachments : keep the attachment rings reinforced;
     protect_clutch_margin : metres around clutch anchors kept reinforced (0: off);
     lockout : weight of the penalty on the energy that other motions' activation sets
-    store in a motion (0: none; :mod:`kgarment.design.objective`).
+    store in a motion (0: none; :mod:`kgarment.design.objective`);
+    balance : weight of the reward for every clutch of a motion's set carrying load on its
+    own (``solo:`` states; 0: none; :mod:`kgarment.design.objective`).
     """
 
     objective: str = "active"
@@ -108,12 +110,13 @@ class DesignSpec:
     protect_attachments: bool = False
     protect_clutch_margin: float = 0.0
     lockout: float = 0.0
+    balance: float = 0.0
 
     def flat(self) -> dict:
         """The [design] table as written in a problem file (BESO fields flattened)."""
         out = {"objective": self.objective, **asdict(self.beso)}
         out.update(protect_attachments=self.protect_attachments, protect_clutch_margin=self.protect_clutch_margin,
-                   lockout=self.lockout)
+                   lockout=self.lockout, balance=self.balance)
         return out
 
 
