@@ -101,3 +101,30 @@ def test_the_run_and_the_evaluator_agree(runs, anny_body):
     assert [s.row() for s in one.states] == [s.row() for s in res.states]
     with pytest.raises(KgarmentError, match="design has"):
         ev.evaluate(design[:-1])
+
+
+def test_force_over_the_motion(runs, anny_body, capsys):
+    """``evaluate --path K``: K frames from rest to the target pose, ON and OFF; the last
+    frame is the target pose itself (skinning transforms interpolated to the end); the garment
+    stores more energy the further the arm bends; the plot and the JSON are written."""
+    from kgarment.design.path import frame_motions
+
+    cli, _, dr = runs
+    motions, index = frame_motions(dr.problem, ["arm_flexion.right"], 2)
+    assert [(m, t) for _, m, t in index] == [("arm_flexion.right", 0.5), ("arm_flexion.right", 1.0)]
+    ev = Evaluator.from_problem(dr.problem, body=anny_body)
+    target = ev.setup.motions["arm_flexion.right"]
+    np.testing.assert_allclose(motions[index[-1][0]].garment_x0, target.garment_x0, atol=1e-9)
+    assert not np.allclose(motions[index[0][0]].garment_x0, target.garment_x0, atol=1e-3)
+    assert main(["-q", "evaluate", str(cli), "--path", "2", "--no-loads"]) == 0
+    (written,) = cli.glob("path-*.json")  # path-ITERATION of the run's final design
+    doc = json.loads(written.read_text())
+    assert written.with_suffix(".png").stat().st_size > 10_000
+    frames = doc["frames"]
+    assert sorted((f["state"], f["t"]) for f in frames) == [("off", 0.5), ("off", 1.0), ("on", 0.5), ("on", 1.0)]
+    on = sorted((f["t"], f["energy_J"]) for f in frames if f["state"] == "on")
+    assert 0 < on[0][1] < on[1][1]
+    assert all(set(f["tension_N"]) == {"elbow_outer.R"} and f["converged"] for f in frames)
+    s = doc["summary"][0]
+    assert s["work_on_J"] == pytest.approx(on[1][1]) and s["peak_on_N"] >= s["mean_on_N"]
+    assert "force over the motion" in capsys.readouterr().out

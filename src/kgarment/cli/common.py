@@ -49,6 +49,7 @@ def number(low: float | None = None, high: float | None = None, low_open: bool =
 
 SUBDIVISION = integer(min(C.SUBDIVISIONS), max(C.SUBDIVISIONS))
 MAX_ITERATIONS = integer(*C.DESIGN_RANGES["max_iterations"])
+FRAMES = integer(1, 200)  # evaluate --path: frames from rest to the target pose
 
 
 def add_problem(sp, help: str = DEFAULT_PROBLEM_HELP) -> None:

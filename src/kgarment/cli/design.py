@@ -6,6 +6,7 @@ import time
 from pathlib import Path
 
 from kgarment.cli.common import (
+    FRAMES,
     MAX_ITERATIONS,
     SUBDIVISION,
     add_device,
@@ -115,8 +116,22 @@ def cmd_evaluate(args) -> int:
     print_evaluation(res)
     if args.plot and res.loads is not None:
         print(f"wrote {load_chart(res.loads, args.plot, f'{src}: clutch loads')}")
+    path = None
+    if args.path:
+        from kgarment.design.path import path_forces, path_plot
+
+        print(f"force over the motion: {args.path} frames from rest to the target pose, ON and OFF")
+        path = path_forces(ev, design, p, frames=args.path, report=lambda line: print(f"  {line}", flush=True))
+        print(path.table())
+        stem = src.run / f"path-{k}"
+        atomic_write_text(stem.with_suffix(".json"), json.dumps({"run": str(src.run), "iteration": k,
+                                                                  **path.to_json()}, indent=1))
+        print(f"wrote {path_plot(path, stem.with_suffix('.png'), f'{src.run.name} iteration {k}: force over the motion')}"
+              f" and {stem.with_suffix('.json')}")
     if args.json:
         doc = {"run": str(src.run), "iteration": k, **res.to_json()}
+        if path is not None:
+            doc["path"] = path.to_json()
         atomic_write_text(args.json, json.dumps(doc, indent=1))
         print(f"wrote {args.json}")
     return 0
@@ -143,6 +158,9 @@ def add_parsers(sub) -> None:
     sp.add_argument("--plot", help="also draw the clutch loads (share and tension per motion) into this PNG")
     sp.add_argument("--no-loads", action="store_true", help="skip the per-clutch loads (one more solve per "
                     "clutch and motion)")
+    sp.add_argument("--path", type=FRAMES, metavar="K", help="also the force over the motion: K quasi-static frames "
+                    "from rest to the target pose, ON and OFF (garment energy and every clutch's tension per "
+                    "frame; plot and JSON written to RUN/path-ITERATION.png/.json; 10 is a good start)")
     add_device(sp)
     sp.set_defaults(func=cmd_evaluate)
 

@@ -1,0 +1,249 @@
+"""What the wearer feels over the whole motion: quasi-static frames from rest to the target.
+
+The paper measured force while the wearer performed each motion slowly (a strip on a load
+cell in place of a clutch, force against motion progress).  :func:`path_forces` does the
+same in simulation: the motion's bone rotations are scaled by ``t = 1/K, 2/K, ..., 1``
+(:meth:`kgarment.body.Motion.at`: the skinning transforms are interpolated, not the
+vertices), the body is posed in each frame, and the design's equilibrium is solved frame
+after frame, ON (the motion's activation set) and OFF, each frame starting from the
+previous frame's equilibrium.  Per frame: the garment's total energy (J; the work the
+wearer has done against it so far, the motion being quasi-static and the garment elastic)
+and the tension in every clutch (N, :func:`kgarment.sim.clutch_tensions`).
+
+Equilibria of a sparse design on a frictionless body can switch from one frame to the next
+(the garment settles elsewhere).  Where a state's energy drops by more than
+:data:`PATH_JUMP` from one frame to the next while the motion goes on, the earlier frame is
+re-solved from the later frame's equilibrium and the lower-energy equilibrium kept; the
+report lists every such frame.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from kgarment.body.motions import Motion as BodyMotion
+from kgarment.errors import KgarmentError
+from kgarment.sim import SimState, clutch_tensions, garment_motions, solve_states
+
+log = logging.getLogger(__name__)
+PATH_FRAMES = 10   # frames from rest to the target pose (``--path`` default)
+PATH_JUMP = 0.02   # a relative energy drop between frames counted as a switch of equilibrium
+STATES = ("on", "off")
+
+
+@dataclass(frozen=True)
+class PathFrame:
+    """One frame of one motion in one state: t in (0, 1] (motion progress), energy_J (the
+    garment's total energy), tension_N (K,) per clutch, converged, resolved (re-solved from
+    the next frame's equilibrium)."""
+
+    motion: str
+    state: str
+    t: float
+    energy_J: float
+    tension_N: tuple[float, ...]
+    converged: bool
+    resolved: bool = False
+
+    def row(self, clutches) -> dict:
+        return {"motion": self.motion, "state": self.state, "t": self.t, "energy_J": self.energy_J,
+                "tension_N": dict(zip(clutches, self.tension_N)), "converged": self.converged,
+                "resolved": self.resolved}
+
+
+@dataclass(frozen=True)
+class PathReport:
+    """Frames of every motion, ON and OFF; clutches : clutch names in tension order."""
+
+    clutches: tuple[str, ...]
+    frames: tuple[PathFrame, ...]
+
+    @property
+    def motions(self) -> list[str]:
+        return list(dict.fromkeys(f.motion for f in self.frames))
+
+    def curve(self, motion: str, state: str) -> list[PathFrame]:
+        return sorted((f for f in self.frames if f.motion == motion and f.state == state), key=lambda f: f.t)
+
+    def summary(self) -> list[dict]:
+        """Per motion and clutch: peak and mean tension ON and OFF (N), and per motion the
+        work against the garment over the motion ON and OFF (J, the energy at the target)."""
+        out = []
+        for m in self.motions:
+            on, off = self.curve(m, "on"), self.curve(m, "off")
+            for k, c in enumerate(self.clutches):
+                t_on = np.array([f.tension_N[k] for f in on])
+                t_off = np.array([f.tension_N[k] for f in off])
+                out.append({"motion": m, "clutch": c, "peak_on_N": float(t_on.max()), "mean_on_N": float(t_on.mean()),
+                            "peak_off_N": float(t_off.max()), "mean_off_N": float(t_off.mean()),
+                            "work_on_J": on[-1].energy_J, "work_off_J": off[-1].energy_J})
+        return out
+
+    def resolved(self) -> list[PathFrame]:
+        return [f for f in self.frames if f.resolved]
+
+    def to_json(self) -> dict:
+        return {"clutches": list(self.clutches), "frames": [f.row(self.clutches) for f in self.frames],
+                "summary": self.summary(), "resolved": [(f.motion, f.state, f.t) for f in self.resolved()]}
+
+    def table(self) -> str:
+        """Per motion and frame: energy ON / OFF (J) and each clutch's tension ON (N)."""
+        head = f"{'motion':22s} {'t':>5s} {'E on (J)':>10s} {'E off (J)':>10s}  " + \
+            "  ".join(f"{c[:14]:>14s}" for c in self.clutches)
+        lines = [head, f"{'':22s} {'':>5s} {'':>10s} {'':>10s}  " + "  ".join(f"{'N (ON)':>14s}" for _ in self.clutches)]
+        for m in self.motions:
+            for a, b in zip(self.curve(m, "on"), self.curve(m, "off")):
+                flag = " *" if a.resolved or b.resolved else ""
+                cells = "  ".join(f"{v:14.1f}" for v in a.tension_N)
+                lines.append(f"{m[:22]:22s} {a.t:5.2f} {a.energy_J:10.4g} {b.energy_J:10.4g}  {cells}{flag}")
+        if self.resolved():
+            lines.append("* a frame re-solved from the next frame's equilibrium (the first solve had switched "
+                         "to another equilibrium)")
+        return "\n".join(lines)
+
+
+def frame_motions(problem, motions, frames: int) -> tuple[dict, list[tuple[str, str, float]]]:
+    """({frame name: kgarment.sim.Motion}, [(frame name, motion, t)]): ``problem``'s garment
+    on its body posed at ``t = i / frames`` of each motion of ``motions`` (i = 1..frames)."""
+    from kgarment.body.anny_backend import load_anny_body
+    from kgarment.problem import build_garment
+
+    if problem.body.model != "anny":
+        raise KgarmentError("--path needs a posable body (body model 'anny'): a mesh sequence has only the "
+                            "target poses")
+    if frames < 1:
+        raise KgarmentError(f"--path {frames}: the number of frames must be at least 1")
+    lib = {m.name: m for m in problem.motion_list()}
+    index, poses = [], []
+    for name in motions:
+        for i in range(1, frames + 1):
+            t = i / frames
+            label = f"{name}@{t:.3f}"
+            poses.append(BodyMotion(label, (lib[name].at(t),)))
+            index.append((label, name, t))
+    body = load_anny_body(poses, problem.body.phenotype)
+    garment = build_garment(problem, body)
+    return garment_motions(body, garment), index
+
+
+def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: int = PATH_FRAMES,
+                report: Callable[[str], None] | None = None) -> PathReport:
+    """The :class:`PathReport` of ``design`` (m,) over ``frames`` frames of each motion of
+    ``motions`` (default: the evaluator's), ON and OFF.
+
+    evaluator : kgarment.design.Evaluator of ``problem`` (its model and solver options);
+    report : called with a line of progress before each frame.
+    """
+    setup = evaluator.setup
+    model = setup.model
+    motions = evaluator.motion_names(motions)
+    sim_motions, index = frame_motions(problem, motions, frames)
+    first = next(iter(sim_motions.values()))
+    if first.garment_x0.shape != (model.n_garment, 3):
+        raise KgarmentError("the frames' garment differs from the run's (another body or garment?)")
+    design = np.asarray(design, dtype=np.float64)
+    names = [c.name for c in model.clutches]
+
+    def state(label: str, motion: str, s: str) -> SimState:
+        g = setup.on_activation(motion) if s == "on" else np.zeros(setup.n_clutches)
+        return SimState.create(sim_motions[label], g, name=f"{label}[{s}]")
+
+    by_motion = {m: [(label, t) for label, mm, t in index if mm == m] for m in motions}
+    results: dict[tuple[str, str, int], object] = {}
+    for i in range(frames):
+        if report is not None:
+            report(f"frame {i + 1}/{frames} (t = {(i + 1) / frames:.2f})")
+        keys = [(m, s, i) for m in motions for s in STATES]
+        states = [state(by_motion[m][i][0], m, s) for m, s, _ in keys]
+        warm = [results[(m, s, i - 1)].x if i > 0 else None for m, s, _ in keys]
+        solved = solve_states(model, design, states, warm_start=warm, options=setup.solver)
+        retry = [j for j, r in enumerate(solved) if not r.converged]
+        if retry:  # the evaluator's two starts (skin-tight, fully reinforced garment)
+            again = evaluator.equilibria(design, [((keys[j][0], keys[j][1]), states[j]) for j in retry])
+            for j, r in zip(retry, again):
+                solved[j] = r
+        results.update(zip(keys, solved))
+    resolved = _resolve_jumps(model, design, setup.solver, motions, frames, by_motion, state, results)
+    out = []
+    for m in motions:
+        for s in STATES:
+            for i, (label, t) in enumerate(by_motion[m]):
+                r = results[(m, s, i)]
+                tension = clutch_tensions(model, design, state(label, m, s), r.x, setup.solver)
+                out.append(PathFrame(m, s, t, float(r.total_energy), tuple(float(v) for v in tension),
+                                     bool(r.converged), (m, s, i) in resolved))
+    return PathReport(tuple(names), tuple(out))
+
+
+def _resolve_jumps(model, design, options, motions, frames, by_motion, state, results) -> set:
+    """Re-solve frame i - 1 from frame i's equilibrium where the energy drops by more than
+    PATH_JUMP from i - 1 to i; keep the lower-energy converged equilibrium.  Returns the
+    (motion, state, frame) keys replaced."""
+    replaced = set()
+    for m in motions:
+        for s in STATES:
+            for _ in range(frames):  # a replaced frame can expose a drop before it
+                drops = [i for i in range(1, frames) if results[(m, s, i)].total_energy
+                         < (1.0 - PATH_JUMP) * results[(m, s, i - 1)].total_energy]
+                fixed = False
+                for i in reversed(drops):
+                    label = by_motion[m][i - 1][0]
+                    again = solve_states(model, design, [state(label, m, s)], warm_start=[results[(m, s, i)].x],
+                                         options=options)[0]
+                    if again.converged and again.total_energy < results[(m, s, i - 1)].total_energy * (1 - 1e-9):
+                        results[(m, s, i - 1)] = again
+                        replaced.add((m, s, i - 1))
+                        fixed = True
+                        log.info("%s[%s]: frame %d re-solved from frame %d (%.4g J)", m, s, i, i + 1,
+                                 again.total_energy)
+                if not fixed:
+                    break
+    return replaced
+
+
+def path_plot(report: PathReport, path, title: str = "") -> Path:
+    """Force against motion progress like the paper's force figure: per motion, each
+    clutch's tension ON (solid) and OFF (dashed), and the garment energy ON / OFF (right
+    axis); a PNG at ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    motions = report.motions
+    fig, axes = plt.subplots(1, len(motions), figsize=(max(3.6 * len(motions), 4.8), 3.4), dpi=100, squeeze=False)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for ax, m in zip(axes[0], motions):
+        on, off = report.curve(m, "on"), report.curve(m, "off")
+        t = [0.0] + [f.t for f in on]
+        for k, c in enumerate(report.clutches):
+            col = colors[k % len(colors)]
+            ax.plot(t, [0.0] + [f.tension_N[k] for f in on], color=col, lw=1.6, label=f"{c} ON")
+            ax.plot(t, [0.0] + [f.tension_N[k] for f in off], color=col, lw=1.0, ls="--", label=f"{c} OFF")
+        ax.set_xlabel("motion progress")
+        ax.set_title(m, fontsize=9)
+        ax.grid(alpha=0.3)
+        e = ax.twinx()
+        e.plot(t, [0.0] + [f.energy_J for f in on], color="k", lw=0.8, alpha=0.6)
+        e.plot(t, [0.0] + [f.energy_J for f in off], color="k", lw=0.8, ls=":", alpha=0.6)
+        e.set_ylabel("garment energy (J), ON solid / OFF dotted", fontsize=7)
+        for f in report.resolved():
+            if f.motion == m:
+                ax.axvline(f.t, color="#e76f51", lw=0.6, alpha=0.6)
+    axes[0][0].set_ylabel("clutch tension (N)")
+    axes[0][0].legend(fontsize=6, loc="upper left")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
