@@ -65,3 +65,35 @@ def test_the_lockout_subtracts_what_other_sets_store():
     ref = {("pull", "on"): 10.0}
     assert objective_value("active", e, ref, ["pull"], w) == pytest.approx((5 - 1 - w * (3 - 1)) / 10)
     assert objective_value("active", e, ref, ["pull"]) == pytest.approx(0.4)
+
+
+def test_balance_adds_one_solo_state_per_clutch_of_a_set():
+    """With a balance, each clutch of a motion's set is also solved alone ON (at its set's
+    value); a set of one clutch needs none (its share is 1 by definition)."""
+    keyed = dict(DesignSetup.build(tube_setup().model, tube_setup().motions, "active", BesoParams(), SolverOptions(),
+                                   activation={"twist": np.array([0.0, 0.5])}, balance=0.3).states())
+    assert list(keyed) == [("pull", "on"), ("pull", "off"), ("pull", "solo:a"), ("pull", "solo:b"),
+                           ("twist", "on"), ("twist", "off")]
+    np.testing.assert_array_equal(keyed[("pull", "solo:a")].activation, [1.0, 0.0])
+    np.testing.assert_array_equal(keyed[("pull", "solo:b")].activation, [0.0, 1.0])
+    assert all(not k[1].startswith("solo:") for k in dict(tube_setup().states()))
+
+
+def test_balance_adds_each_clutchs_own_gain_like_a_motion():
+    """Per motion: (ON - OFF) / max(ON) + w sum_c (SOLO_c - OFF) / max|SOLO_c - OFF|: each
+    clutch's gain scaled to the same size whatever it carries yet; the scalar objective adds
+    w times each solo gain over the fully reinforced garment's energy in that state."""
+    rng = np.random.default_rng(5)
+    a = {("pull", s): rng.random(6) for s in ("on", "off", "solo:a", "solo:b")}
+    a[("pull", "solo:b")] *= 0.01  # a clutch that carries little still counts fully
+    w = 0.4
+    want = ((a[("pull", "on")] - a[("pull", "off")]) / a[("pull", "on")].max()
+            + w * sum((a[("pull", s)] - a[("pull", "off")]) / np.abs(a[("pull", s)] - a[("pull", "off")]).max()
+                      for s in ("solo:a", "solo:b")))
+    np.testing.assert_allclose(combine_sensitivities("active", a, ["pull"], 0.0, w), want)
+    np.testing.assert_allclose(combine_sensitivities("active", a, ["pull"], 0.0, 0.0),
+                               (a[("pull", "on")] - a[("pull", "off")]) / a[("pull", "on")].max())
+    e = {("pull", "on"): 5.0, ("pull", "off"): 1.0, ("pull", "solo:a"): 4.0, ("pull", "solo:b"): 1.5}
+    ref = {("pull", "on"): 10.0, ("pull", "solo:a"): 8.0}
+    assert objective_value("active", e, ref, ["pull"], 0.0, w) == pytest.approx(0.4 + w * (3 / 8 + 0.5 / 10))
+    assert objective_value("active", e, ref, ["pull"]) == pytest.approx(0.4)

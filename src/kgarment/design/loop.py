@@ -144,7 +144,7 @@ def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved) -> np.ndarr
     iteration's; the previous ones when a state did not converge (not twice in a row);
     protected faces on top."""
     filt = setup.filter_matrix @ combine_sensitivities(setup.objective, solved.alpha, list(setup.motions),
-                                                         setup.lockout)
+                                                         setup.lockout, setup.balance)
     if setup.params.history and st.alpha_prev is not None:
         filt = 0.5 * (filt + st.alpha_prev)
     bad = solved.unconverged
@@ -169,7 +169,8 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
     """Step 3: the metrics of this iteration (``seconds`` is filled in by :func:`iterate`)."""
     areas, design = setup.areas, st.design
     frac = float(areas[design > 0.5].sum() / areas.sum())
-    obj = objective_value(setup.objective, solved.energy, reference, list(setup.motions), setup.lockout)
+    obj = objective_value(setup.objective, solved.energy, reference, list(setup.motions), setup.lockout,
+                          setup.balance)
     ends = clutch_end_support(design, setup.end_faces)
     faces = setup.model.garment_faces
     row = {

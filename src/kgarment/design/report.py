@@ -93,5 +93,8 @@ def write_equilibrium(out: Path, stem: str, body_vertices: np.ndarray, body_face
 
 
 def _state_title(state: str) -> str:
-    """A state label in words: "on", "off", or "as in arms_raise" for a lock state."""
-    return f"as in {state.split(':', 1)[1]}" if state.startswith("lock:") else state
+    """A state label in words: "on", "off", "as in arms_raise" for a lock state, "upper_back
+    only" for a solo state."""
+    if state.startswith("lock:"):
+        return f"as in {state.split(':', 1)[1]}"
+    return f"{state.split(':', 1)[1]} only" if state.startswith("solo:") else state

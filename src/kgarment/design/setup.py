@@ -21,8 +21,9 @@ from kgarment.garment.topology import boundary_loops, face_adjacency, triangle_a
 from kgarment.problem import BesoParams, Problem, build_model, solver_options
 from kgarment.sim import Motion, SimModel, SimState, SolverOptions, garment_motions
 
-StateKey = tuple[str, str]  # (motion, "on" | "off" | "none" | "lock:OTHER MOTION")
+StateKey = tuple[str, str]  # (motion, "on" | "off" | "none" | "lock:OTHER MOTION" | "solo:CLUTCH")
 LOCK = "lock:"  # state label prefix: a motion under another motion's activation set
+SOLO = "solo:"  # state label prefix: a motion with one clutch of its set ON, the others OFF
 
 
 @dataclass(frozen=True)
@@ -53,7 +54,9 @@ class DesignSetup:
     skin_start : iterations also solve from the skin-tight start (``SolverSpec.skin_start``);
     activation : {motion: (K,) activation in [0, 1] of its ON state} ([motions.activation];
     a motion not in it switches every clutch on);  lockout : weight of the penalty on what
-    other motions' sets store in a motion (the active objective's ``lock:`` states).
+    other motions' sets store in a motion (the active objective's ``lock:`` states);
+    balance : weight of the reward for each clutch of a motion's set carrying load on its
+    own (the active objective's ``solo:`` states).
     """
 
     model: SimModel
@@ -73,12 +76,14 @@ class DesignSetup:
     skin_start: bool = False
     activation: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     lockout: float = 0.0
+    balance: float = 0.0
 
     @classmethod
     def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
               solver: SolverOptions, evolution_solver: SolverOptions | None = None,
               protected: np.ndarray | None = None, skin_start: bool = False,
-              activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0) -> DesignSetup:
+              activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0,
+              balance: float = 0.0) -> DesignSetup:
         """Precompute areas, filter, adjacency and clutch ends for ``model``."""
         X, F = model.garment_rest, model.garment_faces
         areas = triangle_areas(X, F)
@@ -98,7 +103,8 @@ class DesignSetup:
         return cls(model, dict(motions), objective, params, solver, evolution_solver, protected, areas, filt,
                    face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0,
                    attached.astype(np.int64), loops, skin_start,
-                   {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout))
+                   {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout),
+                   float(balance))
 
     @property
     def n_clutches(self) -> int:
@@ -121,7 +127,9 @@ class DesignSetup:
     def states(self, motions=None) -> list[tuple[StateKey, SimState]]:
         """[((motion, state), SimState)] the objective needs, for ``motions`` (default all):
         ON (the motion's activation set), OFF, or none; with a lockout, the motion under
-        every other motion's set that differs from its own (``lock:OTHER``)."""
+        every other motion's set that differs from its own (``lock:OTHER``); with a balance
+        and a set of two clutches or more, the motion with each clutch of its set alone ON at
+        its set's value (``solo:CLUTCH``)."""
         out = []
         for name in motions or self.motions:
             for s in states_needed(self.objective):
@@ -134,6 +142,22 @@ class DesignSetup:
                     if other != name and not np.array_equal(g, own):
                         label = f"{LOCK}{other}"
                         out.append(((name, label), SimState.create(self.motions[name], g, name=f"{name}[{label}]")))
+            for label, g in self.solo_activations(name):
+                out.append(((name, label), SimState.create(self.motions[name], g, name=f"{name}[{label}]")))
+        return out
+
+    def solo_activations(self, motion: str) -> list[tuple[str, np.ndarray]]:
+        """[(``solo:CLUTCH``, (K,) activation)] for the balance reward of ``motion``: each
+        clutch of its set alone ON; none without a balance or with fewer than two clutches."""
+        own = self.on_activation(motion)
+        on = np.flatnonzero(own > 0)
+        if self.objective != "active" or self.balance <= 0 or len(on) < 2:
+            return []
+        out = []
+        for k in on:
+            g = np.zeros(self.n_clutches)
+            g[k] = own[k]
+            out.append((f"{SOLO}{self.model.clutches[k].name}", g))
         return out
 
     def options(self, iteration: int, target: float) -> SolverOptions:
@@ -168,7 +192,8 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
                              protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin),
                              skin_start=problem.solver.skin_start,
                              activation=activation_vectors(problem, [c.name for c in use]),
-                             lockout=d.lockout if d.objective == "active" else 0.0)
+                             lockout=d.lockout if d.objective == "active" else 0.0,
+                             balance=d.balance if d.objective == "active" else 0.0)
 
 
 def activation_vectors(problem: Problem, names: list[str]) -> dict[str, np.ndarray]:
