@@ -135,7 +135,15 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
     assert {"every_clutch_loaded", "clutch_ends_supported", "one_part", "single_on_off",
             "beats_manual"} <= set(summary["targets"])
     assert all(isinstance(v, bool) for v in summary["targets"].values())
+    # the force over the motion: ours, manual and full, 2 frames ON and OFF per motion
+    for e in doc["experiments"].values():
+        assert set(e["path"]) == {"ours", "manual", "full"}
+        for p in e["path"].values():
+            assert sorted((f["motion"], f["state"], f["t"]) for f in p["frames"]) == sorted(
+                (m, s, t) for m in e["motions"] for s in ("on", "off") for t in (0.5, 1.0))
+    assert "peak_force" in summary["targets"]
     md = (rep / "report.md").read_text()
+    assert "Force over the motion" in md
     page = (rep / "report.html").read_text()
     assert "Clutch loads" in md and "`every_clutch_loaded`" in md
     for heading in ("Targets", "Single-motion designs", "Multi-motion designs", "Cross-evaluation",
@@ -183,3 +191,21 @@ def test_the_selective_target_from_the_clutch_set_tables():
     (t,) = selective_targets({"sleeve_two_motions": base, "sleeve_selective": sel})
     assert not t.ok and "other sets 62% of its own" in t.detail
     assert selective_targets({"sleeve_two_motions": base}) == []  # no activation sets, no target
+
+
+def test_the_peak_force_target_compares_the_largest_tension_over_the_motion():
+    from kgarment.reproduce.targets import force_targets
+
+    def path(forces):  # forces per frame (t = 0.5, 1) of one clutch pair, ON; OFF holds nothing
+        return {"frames": [{"motion": "m", "state": s, "t": t, "energy_J": 1.0,
+                            "tension_N": {"a": f if s == "on" else 0.0, "b": f / 2 if s == "on" else 0.0}}
+                           for s in ("on", "off") for t, f in zip((0.5, 1.0), forces)]}
+
+    def exp(ours, manual):
+        return {"x": {"name": "x", "motions": ["m"], "path": {"ours": path(ours), "manual": path(manual)}}}
+
+    (t,) = force_targets(exp([10.0, 30.0], [20.0, 25.0]))
+    assert t.ok and "30 N against 25 N" in t.detail
+    (t,) = force_targets(exp([10.0, 20.0], [25.0, 5.0]))  # the peak, wherever it is in the motion
+    assert not t.ok and "20 against 25 N" in t.detail
+    assert force_targets({"x": {"name": "x", "motions": ["m"]}}) == []

@@ -14,7 +14,8 @@ DATA = "data.json"  # in a reproduction folder: everything the report shows (res
 class Resolution:
     """subdivision : garment level (None: the example's); er, ar_max : BESO steps (None:
     the example's); max_iterations : cap (None: the example's); window : convergence
-    window; seeds : random baseline designs."""
+    window; seeds : random baseline designs;  path_frames : frames of the force over the
+    motion (ours, manual, full; :mod:`kgarment.design.path`)."""
 
     name: str
     subdivision: int | None
@@ -22,12 +23,13 @@ class Resolution:
     max_iterations: int | None
     window: int | None
     seeds: int
+    path_frames: int = 10
 
 
 RESOLUTIONS = {
-    "tiny": Resolution("tiny", 0, 0.2, 3, 2, 2),
-    "preview": Resolution("preview", 0, 0.03, 120, None, 10),
-    "default": Resolution("default", None, None, None, None, 10),
+    "tiny": Resolution("tiny", 0, 0.2, 3, 2, 2, 2),
+    "preview": Resolution("preview", 0, 0.03, 120, None, 10, 5),
+    "default": Resolution("default", None, None, None, None, 10, 10),
 }
 
 

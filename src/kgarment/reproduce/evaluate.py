@@ -64,6 +64,7 @@ class CachedEvaluator:
 
     def __init__(self, problem: Problem, name: str, cache: EvaluationCache | None = None, device: str = "cpu"):
         self.cache = cache
+        self.problem = problem
         self.body = build_body(problem)
         self.garment = build_garment(problem, self.body)
         self.strips = build_clutches(problem, self.body, self.garment)
@@ -103,6 +104,20 @@ class CachedEvaluator:
         if self.cache is not None and (hit := self.cache.get(key)) is not None:
             return hit
         out = make_plan(self.evaluator, design).to_json()
+        if self.cache is not None:
+            self.cache.put(key, out)
+        return out
+
+    def path(self, design: np.ndarray, frames: int) -> dict:
+        """The force over the motion of ``design`` (m,) in ``frames`` frames, ON and OFF
+        (:func:`kgarment.design.path.path_forces`) as JSON, cached like the evaluations."""
+        from kgarment.design.path import path_forces
+
+        design = np.asarray(design, dtype=np.float64)
+        key = f"{self.name}|{design_key(design)}|path{frames}"
+        if self.cache is not None and (hit := self.cache.get(key)) is not None:
+            return hit
+        out = path_forces(self.evaluator, design, self.problem, frames=frames).to_json()
         if self.cache is not None:
             self.cache.put(key, out)
         return out

@@ -76,3 +76,52 @@ def emergent_figure(path: Path, doc: dict, out: Path) -> str | None:
     fig.savefig(path)
     plt.close(fig)
     return f"img/{path.name}"
+
+
+PATH_COLORS = {"ours": "#1f3b73", "manual": "#d98c1f", "full": "#555555"}
+
+
+def force_curves(path_doc: dict, motion: str, state: str) -> tuple[list[float], list[float]]:
+    """(t, force) of one design's path JSON (:meth:`kgarment.design.path.PathReport.to_json`)
+    in ``motion`` and ``state``: per frame the largest clutch tension (N), the rest pose
+    (0, 0) first."""
+    frames = sorted((f for f in path_doc["frames"] if f["motion"] == motion and f["state"] == state),
+                    key=lambda f: f["t"])
+    return [0.0] + [f["t"] for f in frames], [0.0] + [max(f["tension_N"].values(), default=0.0) for f in frames]
+
+
+def force_stats(path_doc: dict, motion: str) -> dict:
+    """Peak and mean (over the frames) of the largest clutch tension ON and OFF (N), and the
+    work against the garment over the motion ON and OFF (J, its energy at the target)."""
+    out = {}
+    for s in ("on", "off"):
+        _, f = force_curves(path_doc, motion, s)
+        frames = [x for x in path_doc["frames"] if x["motion"] == motion and x["state"] == s]
+        out[s] = {"peak": max(f), "mean": sum(f[1:]) / max(len(f) - 1, 1),
+                  "work": max(frames, key=lambda x: x["t"])["energy_J"] if frames else 0.0}
+    return out
+
+
+def force_figure(path: Path, paths: dict, title: str) -> Path:
+    """Force against motion progress like the paper's force figure: per motion, the largest
+    clutch tension of each design ({kind: path JSON}) ON (solid) and OFF (dashed); a PNG."""
+    plt = _plt()
+    motions = list(dict.fromkeys(f["motion"] for doc in paths.values() for f in doc["frames"]))
+    fig, axes = plt.subplots(1, len(motions), figsize=(max(3.4 * len(motions), 4.4), 3.0), dpi=90, squeeze=False)
+    for ax, m in zip(axes[0], motions):
+        for kind, doc in paths.items():
+            c = PATH_COLORS.get(kind, "#999999")
+            ax.plot(*force_curves(doc, m, "on"), color=c, lw=1.6, label=f"{kind} ON")
+            ax.plot(*force_curves(doc, m, "off"), color=c, lw=1.0, ls="--", label=f"{kind} OFF")
+        ax.set_title(m, fontsize=9)
+        ax.set_xlabel("motion progress")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("largest clutch tension (N)")
+    axes[0][0].legend(fontsize=6)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path

@@ -26,6 +26,7 @@ from kgarment.io import atomic_write_text
 from kgarment.render import render_design
 from kgarment.reproduce.baselines import anchor_rings, manual_design, random_design
 from kgarment.reproduce.evaluate import CachedEvaluator, EvaluationCache
+from kgarment.reproduce.figures import force_figure
 from kgarment.reproduce.experiments import (
     BY_NAME,
     DATA,
@@ -40,6 +41,7 @@ from kgarment.reproduce.targets import target_flags
 
 log = logging.getLogger(__name__)
 PLAN_CLUTCHES = 3  # multi-motion experiments with at most this many clutches get their clutch-set table
+PATH_DESIGNS = ("ours", "manual", "full")  # designs whose force over the motion the report draws
 
 
 def _render_design(path: Path, ev: CachedEvaluator, design: np.ndarray, title: str) -> str:
@@ -95,6 +97,13 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         entry["evaluations"][kind] = ev.evaluate(d, kind, loads=kind in ("ours", "manual"))
     if exp.multi and len(ev.strips) <= PLAN_CLUTCHES:
         entry["plan"] = ev.plan(ours.design)
+    if res.path_frames > 0:
+        entry["path"] = {}
+        for kind in PATH_DESIGNS:
+            log.info("%s: the force over the motion of the %s design (%d frames)", exp.name, kind, res.path_frames)
+            entry["path"][kind] = ev.path(designs[kind], res.path_frames)
+        entry["images"]["force"] = "img/" + force_figure(img / f"{exp.name}_force.png", entry["path"],
+                                                         f"{exp.name}: force over the motion").name
     entry["evaluations"]["random"] = [ev.evaluate(random_design(g.rest_vertices, g.faces, budget, seed), f"random {seed}")
                                       for seed in range(res.seeds)]
     for kind in ("ours", "compliance", "manual"):

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from kgarment.reproduce.catalog import DATA, EXPERIMENTS, PAPER_SHIRT_MATRIX
-from kgarment.reproduce.figures import emergent_figure, rho_bars
+from kgarment.reproduce.figures import emergent_figure, force_stats, rho_bars
 from kgarment.reproduce.text import (
     assessment,
     comparison_paragraph,
@@ -102,6 +102,25 @@ def plan_lines(e: dict) -> list[str]:
     return md + md_table(["set ON", *motions], rows)
 
 
+def force_lines(e: dict) -> list[str]:
+    """The force over the motion (``kgarment evaluate --path``) of our design and the
+    baselines: per motion, peak and mean of the largest clutch tension and the work."""
+    paths = e.get("path")
+    if not paths:
+        return []
+    rows = []
+    for m in e["motions"]:
+        for kind, doc in paths.items():
+            st = force_stats(doc, m)
+            rows.append([m, kind, f"{st['on']['peak']:.0f} / {st['off']['peak']:.0f}",
+                         f"{st['on']['mean']:.0f} / {st['off']['mean']:.0f}",
+                         f"{st['on']['work']:.3g} / {st['off']['work']:.3g}"])
+    n = len(next(iter(paths.values()))["frames"]) // max(2 * len(e["motions"]), 1)
+    return ["Force over the motion (" + str(n) + " frames from rest to the target pose; force: the largest clutch "
+            "tension; work: the garment's energy at the target), ON / OFF.", ""] + \
+        md_table(["motion", "design", "peak force (N)", "mean force (N)", "work (J)"], rows)
+
+
 def build_markdown(doc: dict, figures: dict) -> str:
     exps = doc["experiments"]
     res = doc["resolution"]
@@ -144,7 +163,8 @@ def build_markdown(doc: dict, figures: dict) -> str:
                        "with all ON (* loaded: share at least 0.10).", ""]
                 md += md_table(["motion", "clutch", *kinds], loads)
             md += plan_lines(e)
-            imgs = [f"![{k}]({e['images'][k]})" for k in ("ours", "manual", "compliance", "progress")
+            md += force_lines(e)
+            imgs = [f"![{k}]({e['images'][k]})" for k in ("ours", "manual", "compliance", "progress", "force")
                     if k in e["images"]]
             md += [" ".join(imgs), ""]
             md += assessment(e) + [""]

@@ -10,6 +10,9 @@ a sentence with the numbers behind it.
 ``diagonal``             the cross-evaluation's largest value of each row on the diagonal
 ``beats_manual``         ours >= 1.5x the manual baseline's rho ON and clutch tension (the
                          largest in the motion) on every motion
+``peak_force``           (issue #23) ours' peak clutch force over the motion (ON, the
+                         largest clutch tension of any frame) exceeds the manual baseline's on
+                         every motion
 ``selective``            (issue #22) a design with activation sets: each motion's own set gives
                          rho ON > 1, another motion's set stores at most half of its own set's
                          resistance in it, and it keeps >= 80% of the all-ON multi-motion
@@ -110,6 +113,7 @@ def evaluate_targets(doc: dict) -> list[Target]:
                           f"clutch tension on every motion (smallest: {w[3]} / {w[4]}, rho {w[1]:.2f}x, "
                           f"tension {w[2]:.2f}x)"))
     out += selective_targets(exps)
+    out += force_targets(exps)
     return out
 
 
@@ -152,3 +156,27 @@ def selective_targets(exps: dict) -> list[Target]:
 def target_flags(doc: dict) -> dict[str, bool]:
     """{target name: met} for results.json."""
     return {t.name: bool(t.ok) for t in evaluate_targets(doc)}
+
+
+def force_targets(exps: dict) -> list[Target]:
+    """The ``peak_force`` target over the experiments whose force over the motion was
+    computed (none: no target)."""
+    from kgarment.reproduce.figures import force_stats
+
+    worst = []
+    for e in exps.values():
+        paths = e.get("path") or {}
+        if "ours" not in paths or "manual" not in paths:
+            continue
+        for m in e["motions"]:
+            ours, manual = force_stats(paths["ours"], m)["on"]["peak"], force_stats(paths["manual"], m)["on"]["peak"]
+            worst.append((ours / max(manual, 1e-9), f"{e['name']} / {m}", ours, manual))
+    if not worst:
+        return []
+    bad = [w for w in worst if w[0] <= 1.0]
+    lo = min(worst)
+    detail = "ours' peak clutch force over the motion exceeds the manual baseline's on every motion"
+    detail += f" (smallest: {lo[1]}, {lo[2]:.0f} N against {lo[3]:.0f} N)"
+    if bad:
+        detail += "; not: " + ", ".join(f"{w[1]} ({w[2]:.0f} against {w[3]:.0f} N)" for w in bad)
+    return [Target("peak_force", not bad, detail)]
