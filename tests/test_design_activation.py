@@ -79,21 +79,37 @@ def test_balance_adds_one_solo_state_per_clutch_of_a_set():
     assert all(not k[1].startswith("solo:") for k in dict(tube_setup().states()))
 
 
-def test_balance_adds_each_clutchs_own_gain_like_a_motion():
-    """Per motion: (ON - OFF) / max(ON) + w sum_c (SOLO_c - OFF) / max|SOLO_c - OFF|: each
-    clutch's gain scaled to the same size whatever it carries yet; the scalar objective adds
-    w times each solo gain over the fully reinforced garment's energy in that state."""
-    rng = np.random.default_rng(5)
-    a = {("pull", s): rng.random(6) for s in ("on", "off", "solo:a", "solo:b")}
-    a[("pull", "solo:b")] *= 0.01  # a clutch that carries little still counts fully
-    w = 0.4
-    want = ((a[("pull", "on")] - a[("pull", "off")]) / a[("pull", "on")].max()
-            + w * sum((a[("pull", s)] - a[("pull", "off")]) / np.abs(a[("pull", s)] - a[("pull", "off")]).max()
-                      for s in ("solo:a", "solo:b")))
-    np.testing.assert_allclose(combine_sensitivities("active", a, ["pull"], 0.0, w), want)
-    np.testing.assert_allclose(combine_sensitivities("active", a, ["pull"], 0.0, 0.0),
-                               (a[("pull", "on")] - a[("pull", "off")]) / a[("pull", "on")].max())
-    e = {("pull", "on"): 5.0, ("pull", "off"): 1.0, ("pull", "solo:a"): 4.0, ("pull", "solo:b"): 1.5}
-    ref = {("pull", "on"): 10.0, ("pull", "solo:a"): 8.0}
-    assert objective_value("active", e, ref, ["pull"], 0.0, w) == pytest.approx(0.4 + w * (3 / 8 + 0.5 / 10))
+def test_balance_pushes_only_clutches_that_carry_little():
+    """The balance weight of a clutch is h'(G_c) = clip(1 - s_c / tau, 0, 1): the derivative
+    of the scalar balance term h (finite differences, G held); a clutch at or above the share
+    tau gets none (the strongest is not counted twice); the sensitivity adds each weighted
+    solo gain scaled to the size of the ON - OFF gain's."""
+    from kgarment.design.objective import BALANCE_SHARE as tau
+    from kgarment.design.objective import balance_weights
+
+    e = {("pull", "on"): 5.0, ("pull", "off"): 1.0, ("pull", "solo:a"): 4.9, ("pull", "solo:b"): 1.2,
+         ("pull", "solo:c"): 0.9}
+    w = balance_weights(e, "pull")
+    assert w[("pull", "solo:a")] == 0.0  # share 0.975
+    assert w[("pull", "solo:b")] == pytest.approx(1 - 0.05 / tau)
+    assert w[("pull", "solo:c")] == 1.0  # below OFF
+    ref = {("pull", "on"): 10.0}
+    h = 1e-6
+    for key in w:
+        up, down = dict(e), dict(e)
+        up[key] += h
+        down[key] -= h
+        fd = (objective_value("active", up, ref, ["pull"], 0.0, 1.0)
+              - objective_value("active", down, ref, ["pull"], 0.0, 1.0)) / (2 * h) * 10.0
+        assert fd == pytest.approx(w[key], abs=1e-5)
     assert objective_value("active", e, ref, ["pull"]) == pytest.approx(0.4)
+    rng = np.random.default_rng(5)
+    a = {("pull", s): rng.random(6) for s in ("on", "off", "solo:a", "solo:b", "solo:c")}
+    bw = 0.4
+    want = (a[("pull", "on")] - a[("pull", "off")]) / a[("pull", "on")].max()
+    for key, wk in w.items():
+        g = a[key] - a[("pull", "off")]
+        want = want + bw * wk * g / np.abs(g).max()
+    np.testing.assert_allclose(combine_sensitivities("active", a, ["pull"], 0.0, bw, e), want)
+    with pytest.raises(ValueError, match="energies"):
+        combine_sensitivities("active", a, ["pull"], 0.0, bw)

@@ -144,7 +144,7 @@ def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved) -> np.ndarr
     iteration's; the previous ones when a state did not converge (not twice in a row);
     protected faces on top."""
     filt = setup.filter_matrix @ combine_sensitivities(setup.objective, solved.alpha, list(setup.motions),
-                                                         setup.lockout, setup.balance)
+                                                         setup.lockout, setup.balance, solved.energy)
     if setup.params.history and st.alpha_prev is not None:
         filt = 0.5 * (filt + st.alpha_prev)
     bad = solved.unconverged

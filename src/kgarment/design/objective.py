@@ -8,14 +8,15 @@
                E_ON - E_OFF - w * sum(E_LOCK - E_OFF)), so that switching on the flexion
                clutch does not lock extension.
                With ``[design] balance = w`` (sets of two clutches or more), each motion also
-               rewards every clutch of its set carrying load on its own (``solo:`` states,
-               that clutch alone ON): with G_c = E_solo:c - E_OFF (the numerator of the
-               clutch's share in ``kgarment.design.loads``), the motion's gain becomes
-               G + w sum_c G_c, each G_c's sensitivity scaled to the size of G's (divided by
-               its largest absolute value, times the ON state's largest): every clutch's own
-               load path counts, however little it carries yet, so BESO need not route the
-               motion through the strongest clutch alone (measured in the README: at 15%
-               area the arms-forward shirt still ends on one path).
+               rewards every clutch of its set that carries little on its own (``solo:``
+               states, that clutch alone ON): with G = E_ON - E_OFF, G_c = E_solo:c - E_OFF
+               and the share s_c = G_c / G (``kgarment.design.loads``), the gain becomes
+               G + w sum_c h(G_c), h' = clip(1 - s_c / BALANCE_SHARE, 0, 1) (G held at the
+               iteration's value): a clutch below the share BALANCE_SHARE is pushed towards
+               it, one above it is left alone (the strongest clutch is not counted twice).
+               Each G_c's sensitivity is scaled to the size of G's (divided by its largest
+               absolute value, times the ON state's largest), so a clutch carrying nothing
+               yet still counts.  Measured in the README.
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ import numpy as np
 
 from kgarment.errors import unknown
 from kgarment.problem.spec import OBJECTIVE_NAMES as OBJECTIVES
+
+BALANCE_SHARE = 0.25  # the balance term pushes a clutch's share up to this (loaded: 0.10)
 
 
 def states_needed(kind: str) -> tuple[str, ...]:
@@ -42,16 +45,40 @@ def _locks(values: dict, motion: str) -> list:
     return [v for (m, s), v in values.items() if m == motion and s.startswith("lock:")]
 
 
-def _solos(values: dict, motion: str) -> list:
-    """The ``solo:`` states of ``motion`` among the keys of ``values``."""
-    return [v for (m, s), v in values.items() if m == motion and s.startswith("solo:")]
+def _solo_keys(values: dict, motion: str) -> list:
+    return [(m, s) for (m, s) in values if m == motion and s.startswith("solo:")]
+
+
+def balance_weights(energy: dict[tuple[str, str], float], motion: str) -> dict[tuple[str, str], float]:
+    """{solo key: h'(G_c) = clip(1 - s_c / BALANCE_SHARE, 0, 1)} of ``motion`` (1 where the
+    motion's ON - OFF gain is not positive)."""
+    off = energy[(motion, "off")]
+    g = energy[(motion, "on")] - off
+    return {k: 1.0 if g <= 0 else float(np.clip(1.0 - (energy[k] - off) / (BALANCE_SHARE * g), 0.0, 1.0))
+            for k in _solo_keys(energy, motion)}
+
+
+def _balance_value(energy: dict[tuple[str, str], float], motion: str) -> float:
+    """sum_c h(G_c): h(x) = x (x < 0), x - x^2 / (2 tau G) (0 <= x <= tau G), tau G / 2 beyond."""
+    off = energy[(motion, "off")]
+    g = energy[(motion, "on")] - off
+    total = 0.0
+    for k in _solo_keys(energy, motion):
+        x = energy[k] - off
+        if g <= 0 or x < 0:
+            total += x
+        else:
+            cap = BALANCE_SHARE * g
+            total += x - x * x / (2 * cap) if x <= cap else cap / 2
+    return total
 
 
 def combine_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], motions,
-                          lockout: float = 0.0, balance: float = 0.0) -> np.ndarray:
+                          lockout: float = 0.0, balance: float = 0.0,
+                          energy: dict[tuple[str, str], float] | None = None) -> np.ndarray:
     """(m,) combined sensitivity from per-(motion, state) sensitivities, each (m,);
     ``lockout`` weighs the ``lock:`` states, ``balance`` the ``solo:`` states (both the
-    active objective)."""
+    active objective; the balance needs the states' ``energy``, J)."""
     total = 0.0
     for motion in motions:
         if kind == "active":
@@ -59,9 +86,12 @@ def combine_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], m
             gain = on - off
             for lock in _locks(alpha, motion) if lockout > 0 else ():
                 gain = gain - lockout * (lock - off)
-            for solo in _solos(alpha, motion) if balance > 0 else ():
-                g = solo - off
-                gain = gain + balance * g * (on.max() / max(np.abs(g).max(), 1e-300))
+            if balance > 0 and _solo_keys(alpha, motion):
+                if energy is None:
+                    raise ValueError("the balance term needs the states' energies")
+                for key, w in balance_weights(energy, motion).items():
+                    g = alpha[key] - off
+                    gain = gain + balance * w * g * (on.max() / max(np.abs(g).max(), 1e-300))
             total = total + gain / max(on.max(), 1e-300)
         else:
             state = states_needed(kind)[0]
@@ -73,10 +103,9 @@ def combine_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], m
 def objective_value(kind: str, energy: dict[tuple[str, str], float], reference: dict[tuple[str, str], float],
                     motions, lockout: float = 0.0, balance: float = 0.0) -> float:
     """Scalar objective for convergence tracking: per motion, the (ON - OFF) energy (less
-    ``lockout`` times each ``lock:`` state's energy beyond OFF), or the energy, divided by the
-    fully reinforced design's energy in the first state; plus ``balance`` times each
-    ``solo:`` state's energy beyond OFF over the fully reinforced design's in that state
-    (the ON state's where ``reference`` lacks it); summed."""
+    ``lockout`` times each ``lock:`` state's energy beyond OFF, plus ``balance`` times the
+    balance term sum_c h(G_c)), or the energy, divided by the fully reinforced design's
+    energy in the first state, summed."""
     total = 0.0
     for motion in motions:
         if kind == "active":
@@ -84,10 +113,9 @@ def objective_value(kind: str, energy: dict[tuple[str, str], float], reference: 
             gain = energy[(motion, "on")] - off
             for lock in _locks(energy, motion) if lockout > 0 else ():
                 gain -= lockout * (lock - off)
+            if balance > 0:
+                gain += balance * _balance_value(energy, motion)
             total += gain / reference[(motion, "on")]
-            for (m, s), e in energy.items() if balance > 0 else ():
-                if m == motion and s.startswith("solo:"):
-                    total += balance * (e - off) / reference.get((m, s), reference[(motion, "on")])
         else:
             s = states_needed(kind)[0]
             total += energy[(motion, s)] / reference[(motion, s)]

@@ -116,7 +116,9 @@ class DesignSpec:
         """The [design] table as written in a problem file (BESO fields flattened)."""
         out = {"objective": self.objective, **asdict(self.beso)}
         out.update(protect_attachments=self.protect_attachments, protect_clutch_margin=self.protect_clutch_margin,
-                   lockout=self.lockout, balance=self.balance)
+                   lockout=self.lockout)
+        if self.balance:  # written only when used: problem files and hashes of earlier runs stay as they were
+            out["balance"] = self.balance
         return out
 
 
