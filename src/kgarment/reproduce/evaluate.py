@@ -11,6 +11,7 @@ stale numbers.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import logging
@@ -57,13 +58,15 @@ def problem_key(problem: Problem, strips) -> str:
 class CachedEvaluator:
     """Evaluates designs on ``problem``'s motions with its clutches ON and OFF.
 
-    problem : Problem (its objective is ignored: states are ON and OFF);  name : the key of
+    problem : Problem (its objective and its balance are ignored: states are ON and OFF, and
+    with a lockout the lock states);  name : the key of
     this problem in the cache;  cache : EvaluationCache or None.  ``body``, ``garment``,
     ``strips`` and ``setup`` are the built problem (for renders and baselines).
     """
 
     def __init__(self, problem: Problem, name: str, cache: EvaluationCache | None = None, device: str = "cpu"):
         self.cache = cache
+        problem = dataclasses.replace(problem, design=dataclasses.replace(problem.design, balance=0.0))
         self.problem = problem
         self.body = build_body(problem)
         self.garment = build_garment(problem, self.body)

@@ -50,7 +50,8 @@ log = logging.getLogger(__name__)
 def experiment_problem(exp: Experiment, res: Resolution, objective: str = "active",
                        preset: str | None = None) -> Problem:
     """The example problem of ``exp`` at resolution ``res`` (and with ``objective``, and the
-    material ``preset`` instead of the example's when given)."""
+    material ``preset`` instead of the example's when given; the balance term belongs to
+    the active objective and is dropped for the others)."""
     p = override(load_problem(example_path(exp.name)), preset=preset)
     g, d = p.garment, p.design
     if res.subdivision is not None:
@@ -63,7 +64,9 @@ def experiment_problem(exp: Experiment, res: Resolution, objective: str = "activ
     if res.window is not None:
         changes["window"] = res.window
     beso = dataclasses.replace(d.beso, **changes)
-    return dataclasses.replace(p, garment=g, design=dataclasses.replace(d, objective=objective, beso=beso))
+    balance = d.balance if objective == "active" else 0.0
+    return dataclasses.replace(p, garment=g, design=dataclasses.replace(d, objective=objective, beso=beso,
+                                                                        balance=balance))
 
 
 @dataclass

@@ -152,8 +152,10 @@ def build_markdown(doc: dict, figures: dict) -> str:
         for e in (x for x in exps.values() if x["multi"] == multi):
             md += [f"### {e['title']}", "",
                    f"`{e['name']}`: {e['garment']}, {e['faces']} faces, {e['clutches']} clutch(es), budget "
-                   f"{100 * e['budget']:.0f}%; our run took {e['run']['iterations']} iterations, "
-                   f"{e['run']['seconds'] / 60:.1f} min.", ""]
+                   f"{100 * e['budget']:.0f}%"
+                   + (f", clutch balance {e['balance']:g} (`[design] balance`: every clutch's own load path "
+                      "rewarded)" if e.get("balance") else "")
+                   + f"; our run took {e['run']['iterations']} iterations, {e['run']['seconds'] / 60:.1f} min.", ""]
             head = ["design", *[f"{m} ON / OFF" for m in e["motions"]], "parts (clutch-linked / not)", "clutch ends on reinf.", "area"]
             md += md_table(head, design_rows(e))
             loads = load_rows(e)

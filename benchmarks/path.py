@@ -1,0 +1,61 @@
+"""Benchmark: the force over the motion (``kgarment evaluate RUN --path K``) of a design.
+
+Loads a finished run (default ``runs/demo``, the main job: ``kgarment demo`` makes it),
+builds its evaluator, and times :func:`kgarment.design.path.path_forces` with K frames
+(default 10) on every motion of the run, ON and OFF: posing the body and the garment in
+the frames, then the frame-by-frame solves and the clutch tensions. Prints the timings,
+the peak tension per motion and clutch (ON and OFF) and the frames
+re-solved, and records them in ``benchmarks/results.json`` under ``path``. Target on a
+2-core machine: the main job's design (subdivision 0) at 10 frames in at most 60 s.
+
+    python benchmarks/path.py [RUN] [--frames K]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from kgarment.design import Evaluator, load_design, parse_design_source
+from kgarment.design.driver import run_inputs
+from kgarment.design.path import frame_motions, path_forces
+from kgarment.design.run import iteration_of
+from kgarment.problem import load_problem
+
+RESULTS = Path(__file__).resolve().parent / "results.json"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("run", nargs="?", default="runs/demo")
+    ap.add_argument("--frames", type=int, default=10)
+    a = ap.parse_args()
+    src = parse_design_source(a.run, run_required=True)
+    problem = load_problem(src.run / "problem.toml")
+    problem, body, garment, strips = run_inputs(src.run, problem)
+    ev = Evaluator.from_problem(problem, body=body, garment=garment, strips=strips)
+    design = load_design(src, ev.n_faces)
+    t0 = time.time()
+    frame_motions(problem, ev.motions, a.frames)  # posing (cached on disk after the first time)
+    t_pose = time.time() - t0
+    t0 = time.time()
+    rep = path_forces(ev, design, problem, frames=a.frames)
+    wall = time.time() - t0
+    print(rep.table())
+    out = {"run": str(src.run), "iteration": iteration_of(src), "frames": a.frames, "motions": ev.motions,
+           "faces": int(ev.n_faces), "posing_s": t_pose, "wall_s": wall,
+           "resolved_frames": len(rep.resolved()),
+           "peak_on_N": {f"{r['motion']}/{r['clutch']}": r["peak_on_N"] for r in rep.summary()},
+           "peak_off_N": {f"{r['motion']}/{r['clutch']}": r["peak_off_N"] for r in rep.summary()}}
+    print(f"\n{a.frames} frames x {len(ev.motions)} motions x ON/OFF on {ev.n_faces} faces: {wall:.1f} s "
+          f"(posing alone, warm cache: {t_pose:.1f} s); target <= 60 s for the main job")
+    doc = json.loads(RESULTS.read_text()) if RESULTS.is_file() else {}
+    doc["path"] = out
+    RESULTS.write_text(json.dumps(doc, indent=1))
+    print(f"recorded in {RESULTS}")
+
+
+if __name__ == "__main__":
+    main()
