@@ -11,10 +11,15 @@ wearer has done against it so far, the motion being quasi-static and the garment
 and the tension in every clutch (N, :func:`kgarment.sim.clutch_tensions`).
 
 Equilibria of a sparse design on a frictionless body can switch from one frame to the next
-(the garment settles elsewhere).  Where a state's energy drops by more than
-:data:`PATH_JUMP` from one frame to the next while the motion goes on, the earlier frame is
-re-solved from the later frame's equilibrium and the lower-energy equilibrium kept; the
-report lists every such frame.
+(the garment settles elsewhere, or a warm start carried over a moving body ends tangled in
+a high-energy one).  Where a state's energy drops by more than :data:`PATH_JUMP` from one
+frame to the next while the motion goes on, the earlier frame is re-solved from the later
+frame's equilibrium and from the evaluator's two starts, and the lowest-energy equilibrium
+kept.  The last frame is the target
+pose, where the one design evaluator's equilibrium (two starts) is known: where it has
+less energy than the path's end, it replaces it and the frames before are re-solved
+backwards from it while that lowers their energy.  The report lists every frame
+re-solved.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from kgarment.body.motions import Motion as BodyMotion
+from kgarment.design.evaluate import MULTISTABLE
 from kgarment.errors import KgarmentError
 from kgarment.sim import SimState, clutch_tensions, garment_motions, solve_states
 
@@ -102,8 +108,8 @@ class PathReport:
                 cells = "  ".join(f"{v:14.1f}" for v in a.tension_N)
                 lines.append(f"{m[:22]:22s} {a.t:5.2f} {a.energy_J:10.4g} {b.energy_J:10.4g}  {cells}{flag}")
         if self.resolved():
-            lines.append("* a frame re-solved from the next frame's equilibrium (the first solve had switched "
-                         "to another equilibrium)")
+            lines.append("* a frame re-solved (from the next frame's equilibrium, the evaluator's starts, or the "
+                         "target's equilibrium): the first solve had ended in another, higher-energy equilibrium")
         return "\n".join(lines)
 
 
@@ -164,11 +170,14 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         solved = solve_states(model, design, states, warm_start=warm, options=setup.solver)
         retry = [j for j, r in enumerate(solved) if not r.converged]
         if retry:  # the evaluator's two starts (skin-tight, fully reinforced garment)
-            again = evaluator.equilibria(design, [((keys[j][0], keys[j][1]), states[j]) for j in retry])
+            # keyed by frame: the evaluator keeps equilibria per key, and a frame is not the target
+            again = evaluator.equilibria(design, [((by_motion[keys[j][0]][i][0], keys[j][1]), states[j])
+                                                  for j in retry])
             for j, r in zip(retry, again):
                 solved[j] = r
         results.update(zip(keys, solved))
-    resolved = _resolve_jumps(model, design, setup.solver, motions, frames, by_motion, state, results)
+    resolved = _anchor_target(evaluator, design, motions, frames, by_motion, state, results)
+    resolved |= _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results)
     out = []
     for m in motions:
         for s in STATES:
@@ -180,10 +189,40 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
     return PathReport(tuple(names), tuple(out))
 
 
-def _resolve_jumps(model, design, options, motions, frames, by_motion, state, results) -> set:
-    """Re-solve frame i - 1 from frame i's equilibrium where the energy drops by more than
-    PATH_JUMP from i - 1 to i; keep the lower-energy converged equilibrium.  Returns the
-    (motion, state, frame) keys replaced."""
+def _anchor_target(evaluator, design, motions, frames, by_motion, state, results) -> set:
+    """The last frame is the target pose: where the evaluator's equilibrium there (its two
+    starts, :meth:`kgarment.design.Evaluator.solve_design`) has less energy than the path's,
+    it replaces the last frame and the frames before are re-solved backwards, each from the
+    next one's equilibrium, as long as that lowers their energy.  Returns the keys replaced."""
+    setup, model = evaluator.setup, evaluator.setup.model
+    keys = [(m, s) for m in motions for s in STATES]
+    # keyed like the evaluator's own target states: the same pose, so its equilibria there
+    # (and its fully reinforced references) are reused and its numbers are the path's end
+    targets = [((m, s), state(by_motion[m][-1][0], m, s)) for m, s in keys]
+    replaced = set()
+    for (m, s), r in zip(keys, evaluator.equilibria(design, targets)):
+        last = frames - 1
+        if not (r.converged and r.total_energy < results[(m, s, last)].total_energy * (1 - MULTISTABLE)):
+            continue
+        results[(m, s, last)] = r
+        replaced.add((m, s, last))
+        for i in range(last - 1, -1, -1):
+            again = solve_states(model, design, [state(by_motion[m][i][0], m, s)], warm_start=[results[(m, s, i + 1)].x],
+                                 options=setup.solver)[0]
+            if not (again.converged and again.total_energy < results[(m, s, i)].total_energy * (1 - 1e-9)):
+                break
+            results[(m, s, i)] = again
+            replaced.add((m, s, i))
+        log.info("%s[%s]: the path's end was above the target's equilibrium (%.4g J); re-solved backwards", m, s,
+                 r.total_energy)
+    return replaced
+
+
+def _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results) -> set:
+    """Where the energy drops by more than PATH_JUMP from frame i - 1 to frame i, re-solve
+    frame i - 1 from frame i's equilibrium and from the evaluator's two starts, and keep the
+    lowest-energy converged equilibrium.  Returns the (motion, state, frame) keys replaced."""
+    model, options = evaluator.setup.model, evaluator.setup.solver
     replaced = set()
     for m in motions:
         for s in STATES:
@@ -193,14 +232,15 @@ def _resolve_jumps(model, design, options, motions, frames, by_motion, state, re
                 fixed = False
                 for i in reversed(drops):
                     label = by_motion[m][i - 1][0]
-                    again = solve_states(model, design, [state(label, m, s)], warm_start=[results[(m, s, i)].x],
-                                         options=options)[0]
-                    if again.converged and again.total_energy < results[(m, s, i - 1)].total_energy * (1 - 1e-9):
-                        results[(m, s, i - 1)] = again
+                    st = state(label, m, s)
+                    tries = solve_states(model, design, [st], warm_start=[results[(m, s, i)].x], options=options)
+                    tries += evaluator.equilibria(design, [((label, s), st)])
+                    best = min((r for r in tries if r.converged), key=lambda r: r.total_energy, default=None)
+                    if best is not None and best.total_energy < results[(m, s, i - 1)].total_energy * (1 - 1e-9):
+                        results[(m, s, i - 1)] = best
                         replaced.add((m, s, i - 1))
                         fixed = True
-                        log.info("%s[%s]: frame %d re-solved from frame %d (%.4g J)", m, s, i, i + 1,
-                                 again.total_energy)
+                        log.info("%s[%s]: frame %d re-solved (%.4g J)", m, s, i, best.total_energy)
                 if not fixed:
                     break
     return replaced

@@ -117,7 +117,7 @@ class CachedEvaluator:
         from kgarment.design.path import path_forces
 
         design = np.asarray(design, dtype=np.float64)
-        key = f"{self.name}|{design_key(design)}|path{frames}"
+        key = f"{self.name}|{design_key(design)}|path{frames}|v2"  # v2: the end anchored at the target's equilibrium
         if self.cache is not None and (hit := self.cache.get(key)) is not None:
             return hit
         out = path_forces(self.evaluator, design, self.problem, frames=frames).to_json()

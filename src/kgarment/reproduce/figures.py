@@ -104,7 +104,8 @@ def force_stats(path_doc: dict, motion: str) -> dict:
 
 def force_figure(path: Path, paths: dict, title: str) -> Path:
     """Force against motion progress like the paper's force figure: per motion, the largest
-    clutch tension of each design ({kind: path JSON}) ON (solid) and OFF (dashed); a PNG."""
+    clutch tension of each design ({kind: path JSON}) ON (solid) and OFF (dashed), frames
+    that did not converge crossed; a PNG."""
     plt = _plt()
     motions = list(dict.fromkeys(f["motion"] for doc in paths.values() for f in doc["frames"]))
     fig, axes = plt.subplots(1, len(motions), figsize=(max(3.4 * len(motions), 4.4), 3.0), dpi=90, squeeze=False)
@@ -113,6 +114,12 @@ def force_figure(path: Path, paths: dict, title: str) -> Path:
             c = PATH_COLORS.get(kind, "#999999")
             ax.plot(*force_curves(doc, m, "on"), color=c, lw=1.6, label=f"{kind} ON")
             ax.plot(*force_curves(doc, m, "off"), color=c, lw=1.0, ls="--", label=f"{kind} OFF")
+            for state in ("on", "off"):  # frames that did not converge: crosses
+                t, f = force_curves(doc, m, state)
+                bad = {x["t"] for x in doc["frames"] if x["motion"] == m and x["state"] == state and not x["converged"]}
+                pts = [(a, b) for a, b in zip(t, f) if a in bad]
+                if pts:
+                    ax.plot(*zip(*pts), "x", color=c, ms=6)
         ax.set_title(m, fontsize=9)
         ax.set_xlabel("motion progress")
         ax.grid(alpha=0.3)

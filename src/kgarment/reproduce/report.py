@@ -116,9 +116,20 @@ def force_lines(e: dict) -> list[str]:
                          f"{st['on']['mean']:.0f} / {st['off']['mean']:.0f}",
                          f"{st['on']['work']:.3g} / {st['off']['work']:.3g}"])
     n = len(next(iter(paths.values()))["frames"]) // max(2 * len(e["motions"]), 1)
+    notes = []
+    for kind, doc in paths.items():
+        bad = [f for f in doc["frames"] if not f["converged"]]
+        again = doc.get("resolved", [])
+        if bad:
+            notes.append(f"{kind}: {len(bad)} frame(s) did not converge (crossed in the figure: "
+                         + ", ".join(f"{f['motion']} {f['state'].upper()} t = {f['t']:.2f}" for f in bad) + ")")
+        if again:
+            notes.append(f"{kind}: {len(again)} frame(s) re-solved (the first solve had ended in another, "
+                         "higher-energy equilibrium)")
     return ["Force over the motion (" + str(n) + " frames from rest to the target pose; force: the largest clutch "
             "tension; work: the garment's energy at the target), ON / OFF.", ""] + \
-        md_table(["motion", "design", "peak force (N)", "mean force (N)", "work (J)"], rows)
+        md_table(["motion", "design", "peak force (N)", "mean force (N)", "work (J)"], rows) + \
+        ([f"- {x}" for x in notes] + [""] if notes else [])
 
 
 def build_markdown(doc: dict, figures: dict) -> str:
