@@ -22,6 +22,7 @@ from kgarment.sim.materials import (
 )
 from kgarment.sim.membrane import branches, membrane
 from kgarment.sim.model import SimModel, SimState
+from kgarment.sim.slip import SliderSet, slider_energy
 from kgarment.sim.springs import GROUPS, SpringSet, attachment_springs, springs
 
 TERMS = ("membrane_garment", "membrane_clutch", "contact") + GROUPS
@@ -58,6 +59,28 @@ def state_materials(model: SimModel, design: np.ndarray, activation) -> StateMat
         ys.append(np.full(nk, yc))
         ts.append(np.full(nk, tc))
     return StateMaterials(np.concatenate(ys), np.concatenate(ts))
+
+
+def slider_arrays(model: SimModel, activation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The slipping clutch elements of a state (``sim.slip``): element ids (q,), slider
+    stiffness ``k`` (q,) N/m and holding force per unit width ``cap`` (q,) N/m -- the
+    elements of every clutch with a finite holding force and activation g > 0."""
+    g = np.asarray(activation, dtype=np.float64).reshape(-1)
+    ids, ks, caps = [], [], []
+    if model.slips:
+        pre, fo = model.preset, model.face_offsets
+        s_off = pre.young_clutch_off * pre.thick_clutch_off
+        for k in range(model.n_clutches):
+            if g[k] <= 0.0 or not np.isfinite(model.holding_force[k]):
+                continue
+            yc, tc = clutch_material(g[k], pre)
+            e = np.arange(fo[k + 1], fo[k + 2])
+            ids.append(e)
+            ks.append(np.full(len(e), max(yc * tc - s_off, 1e-12 * s_off)))
+            caps.append(np.full(len(e), g[k] ** 2 * model.holding_force[k] / model.strip_width[k]))
+    if not ids:
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+    return np.concatenate(ids), np.concatenate(ks), np.concatenate(caps)
 
 
 def vertex_stiffness(model: SimModel, mats: StateMaterials) -> np.ndarray:
@@ -113,10 +136,18 @@ class StateProblem:
         self.force_scale = self._t(np.maximum(s_v, model.preset.cloth_stiffness) * model.mean_edge)
         T = self._t
         el = model.elements
-        mu, lam = lame_plane_stress(self.mats.young, model.preset.poisson)
+        # a slipping clutch element is the clutch's OFF membrane plus an axial slider (sim.slip);
+        # its penalties keep the ON stiffness (mats), which the anchors must hold
+        young, thick = self.mats.young.copy(), self.mats.thick.copy()
+        sid, sk, scap = slider_arrays(model, state.activation)
+        young[sid], thick[sid] = model.preset.young_clutch_off, model.preset.thick_clutch_off
+        self.sliders = None if len(sid) == 0 else SliderSet(
+            element=T(sid, torch.long), tri=T(el.tri[sid], torch.long),
+            coef=T(model.slip_coef[sid - model.n_faces]), area=T(el.area[sid]), k=T(sk), cap=T(scap))
+        mu, lam = lame_plane_stress(young, model.preset.poisson)
         self.tri = T(el.tri, torch.long)
         self.G = T(el.shape_grad)
-        self.weight = T(el.area * self.mats.thick)
+        self.weight = T(el.area * thick)
         self.mu, self.lam = T(mu), T(lam)
         self.relaxed = T(model.relaxed, torch.bool)
         self.k_contact = T(k_contact)
@@ -165,8 +196,7 @@ class StateProblem:
         asks for the exact (unprojected, full contact) Hessian instead of the PSD one."""
         self.n_evals += 1
         proj = "none" if exact else self.projection
-        e_m, g_m, h_m = membrane(x, self.tri, self.G, self.weight, self.mu, self.lam, self.relaxed,
-                                 order=order, projection=proj)
+        e_m, g_m, h_m = self._membrane(x, order, proj)
         e_c, g_c, h_c = contact(x, self.k_contact, *self._contact_args(x), order=order,
                                 exact_hessian=exact or self.exact_contact_hessian, pre=self._pre)
         e_s, g_s = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=min(order, 1))
@@ -195,6 +225,21 @@ class StateProblem:
             raise SimulationError(f"state {self.name!r}: non-finite Hessian")
         return float(total), grad, hess
 
+    def _membrane(self, x: torch.Tensor, order: int, projection: str):
+        """Per-element membrane energy (M,), gradient (M, 3, 3) and Hessian (M, 9, 9), the
+        sliders of slipping clutch elements added to their elements."""
+        e, g, h = membrane(x, self.tri, self.G, self.weight, self.mu, self.lam, self.relaxed,
+                           order=order, projection=projection)
+        if self.sliders is not None:
+            es, gs, hs = slider_energy(x, self.sliders, order, project=projection != "none")
+            idx = self.sliders.element
+            e = e.index_add(0, idx, es)
+            if gs is not None:
+                g = g.index_add(0, idx, gs)
+            if hs is not None:
+                h = h.index_add(0, idx, hs)
+        return e, g, h
+
     def _split_terms(self, e_m, e_c, e_s) -> dict[str, torch.Tensor]:
         m = self.m_garment
         out = {"membrane_garment": e_m[:m].sum(), "membrane_clutch": e_m[m:].sum(), "contact": e_c.sum()}
@@ -204,7 +249,7 @@ class StateProblem:
 
     def terms(self, x: torch.Tensor) -> tuple[dict[str, float], np.ndarray]:
         """Energy by term (J) and per-element membrane energy (M,) J at x."""
-        e_m, _, _ = membrane(x, self.tri, self.G, self.weight, self.mu, self.lam, self.relaxed, order=0)
+        e_m, _, _ = self._membrane(x, 0, self.projection)
         e_c, _, _ = contact(x, self.k_contact, *self._contact_args(x), order=0, pre=self._pre)
         e_s, _ = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=0)
         split = self._split_terms(e_m, e_c, e_s)

@@ -42,6 +42,7 @@ from kgarment.sim.assembly import HessianPattern, build_pattern
 from kgarment.sim.contact import ImplicitBody
 from kgarment.sim.materials import MaterialPreset, get_preset
 from kgarment.sim.membrane import TriangleElements
+from kgarment.sim.slip import axial_coefficients, rest_width
 from kgarment.sim.springs import SpringSet, binding_springs
 
 
@@ -73,6 +74,10 @@ class SimModel:
     static_springs : anchors and ties (motion-independent)
     pattern : HessianPattern
     penalties : PenaltyParams
+    holding_force : (K,) N each clutch holds before it slides (``sim.slip``); inf: locked
+        (the paper's model, an ON clutch never slips).  None: every clutch locked.
+    slip_coef : (M - m, 3) axial shape coefficients of the clutch elements (1/m)
+    strip_width : (K,) each strip's mean rest width, m
     """
 
     preset: MaterialPreset
@@ -88,6 +93,14 @@ class SimModel:
     static_springs: SpringSet
     pattern: HessianPattern = field(repr=False)
     penalties: PenaltyParams = PenaltyParams()
+    holding_force: np.ndarray | None = None
+    slip_coef: np.ndarray | None = field(default=None, repr=False)
+    strip_width: np.ndarray | None = None
+
+    @property
+    def slips(self) -> bool:
+        """Whether any clutch has a finite holding force."""
+        return self.holding_force is not None and bool(np.isfinite(self.holding_force).any())
 
     @property
     def n_garment(self) -> int:
@@ -128,11 +141,14 @@ def build_model(
     clutches: list[ClutchStrip] | tuple[ClutchStrip, ...] = (),
     preset: str | MaterialPreset = "paper",
     penalties: PenaltyParams = PenaltyParams(),
+    holding_force=None,
 ) -> SimModel:
     """Build the simulation model.
 
     garment_vertices : (n, 3) rest positions, m;  garment_faces : (m, 3) int;
-    clutches : ClutchStrip list (bound to this garment);  preset : "paper" | "reference".
+    clutches : ClutchStrip list (bound to this garment);  preset : "paper" | "reference";
+    holding_force : None (every clutch locked, the paper's model) or (K,) newtons per
+    clutch, ``inf`` for a locked one (``sim.slip``).
     """
     X = np.ascontiguousarray(garment_vertices, dtype=np.float64)
     F = np.ascontiguousarray(garment_faces, dtype=np.int64)
@@ -145,13 +161,16 @@ def build_model(
     n, m = len(X), len(F)
     voff, foff = [0, n], [0, m]
     parts = [TriangleElements.from_mesh(X, F)]
-    springs = []
+    springs, coef, width = [], [], []
     for c in clutches:
         cf = np.asarray(c.faces, dtype=np.int64)
         nc = len(c.vertices)
         if np.asarray(c.bind_face).max() >= m:
             raise ValueError(f"clutch {c.name!r} binds to a face outside the garment")
-        parts.append(TriangleElements.from_mesh(c.rest_vertices(), cf, offset=voff[-1]))
+        rest = c.rest_vertices()
+        parts.append(TriangleElements.from_mesh(rest, cf, offset=voff[-1]))
+        coef.append(axial_coefficients(rest, cf, parts[-1].shape_grad, c.centerline))
+        width.append(rest_width(rest, cf, c.centerline))
         anchors = np.asarray(c.anchors, dtype=np.int64)
         ties = np.setdiff1d(np.asarray(c.centerline, dtype=np.int64), anchors)
         for ids, grp in ((anchors, "anchor"), (ties, "tie")):
@@ -170,10 +189,16 @@ def build_model(
     mean_edge = float(np.linalg.norm(X[e[:, 0]] - X[e[:, 1]], axis=1).mean())
     static = SpringSet.concat(springs)
     pattern = build_pattern(n_all, elems.tri, static.index)
+    hold = None
+    if holding_force is not None:
+        hold = np.asarray(holding_force, dtype=np.float64).reshape(-1)
+        if hold.shape != (len(clutches),) or np.any(np.isnan(hold)) or np.any(hold <= 0):
+            raise ValueError(f"holding_force must be {len(clutches)} positive forces (inf: locked)")
     return SimModel(preset=mat, garment_rest=X, garment_faces=F, clutches=clutches,
                     vertex_offsets=np.array(voff), face_offsets=np.array(foff), elements=elems,
                     relaxed=relaxed, vertex_area=varea, mean_edge=mean_edge, static_springs=static,
-                    pattern=pattern, penalties=penalties)
+                    pattern=pattern, penalties=penalties, holding_force=hold,
+                    slip_coef=np.concatenate(coef) if coef else np.zeros((0, 3)), strip_width=np.array(width))
 
 
 @dataclass(frozen=True)
