@@ -67,6 +67,13 @@ PROBLEMS = [
     (CLUTCH + 'direction = [0, 0, -1]\nlength = 3.0\n', "field 'length' = 3 m; allowed: up to 1 m"),
     (CLUTCH + 'towards = "elbow_outer.R"\nlength = 0.1\n', "'towards' is the start itself"),
     ('[motions]\ndefine = 3\n', "[motions] define must hold tables"),
+    ('[clutches]\nmodel = "sticky"\n', "[clutches] model = 'sticky'; allowed: locked, slip"),
+    ('[clutches]\nmodel = "locked"\nholding_force = 50\n', 'holding_force does nothing with model = "locked"'),
+    ('[clutches]\nholding_force = -5\n', "[clutches] holding_force = -5 is outside [0.001, 100000] N"),
+    ('[clutches]\nholding_force = { upper_back = "a lot" }\n', "holding_force.upper_back = 'a lot' must be a number"),
+    ('[clutches]\nholding_stress = 1e5\nvoltage = 300\n', "holding_stress and voltage both set the holding stress"),
+    ('[clutches]\nvoltage = 0\n', "[clutches] voltage = 0.0 must be > 0"),
+    ('[clutches]\nfriction = 5\n', "[clutches] friction = 5.0 is outside"),
 ]
 
 
@@ -93,6 +100,8 @@ FLAGS = [
     (["fabricate", "run", "--min-width", "inf"], "argument --min-width: inf is not a finite number"),
     (["reproduce", "--preset", "steel"], "argument --preset: invalid choice: 'steel'"),
     (["plan", "run", "--exhaustive", "11"], "argument --exhaustive: 11 is outside [0, 10]"),
+    (["evaluate", "run", "--holding-force", "-1"], "argument --holding-force: -1 is outside"),
+    (["design", "--clutch-model", "glued"], "argument --clutch-model: invalid choice: 'glued'"),
 ]
 
 
@@ -287,6 +296,17 @@ def test_workers_die_with_their_parent(tmp_path):
         for p in pids:
             if _alive(p):
                 os.kill(p, signal.SIGKILL)
+
+
+def test_a_holding_force_naming_an_unknown_clutch(tmp_path, monkeypatch, capsys, anny_body):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.toml").write_text('[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n'
+                                     '[motions]\nuse = ["arm_flexion.right"]\n[clutches]\nlayout = "sleeve"\n'
+                                     'holding_force = { "elbow_outer.L" = 50 }\n')
+    rc, _, err = run_cli(["design", "p.toml", "--out", "run"], capsys)
+    assert_one_line(rc, err, "[clutches] holding_force names unknown clutch(es) ['elbow_outer.L']; "
+                             "the clutches are: elbow_outer.R, elbow_inner.R")
+    assert not (tmp_path / "run").exists()
 
 
 def test_an_activation_set_naming_an_unknown_clutch(tmp_path, monkeypatch, capsys, anny_body):

@@ -50,6 +50,17 @@ def target_reached(area: float, target: float, er: float) -> bool:
     """Whether a reinforced area share ``area`` counts as the target ``target`` (A*)."""
     return abs(area - target) <= TARGET_MARGIN + er * target
 
+# ----- clutch hardware: how much an ON clutch holds (method.md section 9; kgarment.sim.slip) -----
+CLUTCH_MODELS = ("locked", "slip")  # locked: an ON clutch never slips (the paper's model)
+HOLDING_STRESS = 2.1e5     # Pa of overlap (width x length): 21 N/cm^2, measured for the textile
+                           # electrostatic clutches the paper used (Hinchet & Shea 2020)
+DIELECTRIC_THICKNESS = 25e-6  # m: the paper's P(VDF-TrFE-CTFE) layer on the insulating strip
+DIELECTRIC_PERMITTIVITY = 40.0  # relative permittivity of P(VDF-TrFE-CTFE)
+CLUTCH_FRICTION = 0.3      # friction coefficient between the strips
+CLUTCH_RANGES = {"holding_stress": (1.0, 1e8), "voltage": (0.0, 1e4), "dielectric_thickness": (1e-7, 1e-2),
+                 "permittivity": (1.0, 1e5), "friction": (1e-3, 2.0), "holding_force": (1e-3, 1e5)}
+SLIPPING = 0.98            # a clutch slips where its tension reaches this share of its holding force
+
 # ----- judging a design as a garment (method.md section 9) -----------------------------------
 LOADED_SHARE = 0.10    # a clutch is "loaded" in a motion when switching it on alone gives at least
                        # this share of the energy that switching all clutches on adds

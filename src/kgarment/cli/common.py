@@ -61,7 +61,8 @@ def add_device(sp) -> None:
 
 
 def add_overrides(sp, *, motion: bool = True, garment: bool = True, subdivision: bool = True,
-                  materials: bool = False, solver: bool = False, max_iterations: bool = False) -> None:
+                  materials: bool = False, solver: bool = False, max_iterations: bool = False,
+                  clutch: bool = False) -> None:
     """Flags that override fields of the problem file (validated like the file's)."""
     if motion:
         sp.add_argument("--motion", action="append", help="motion (repeatable); default: the problem's motions")
@@ -77,6 +78,18 @@ def add_overrides(sp, *, motion: bool = True, garment: bool = True, subdivision:
                                                   "[solver] tol, capped at the evaluation tolerance 1e-4)")
     if max_iterations:
         sp.add_argument("--max-iterations", type=MAX_ITERATIONS, help="stop after this many iterations")
+    if clutch:
+        add_clutch_model(sp)
+
+
+def add_clutch_model(sp) -> None:
+    """--clutch-model and --holding-force (the [clutches] hardware, kgarment.sim.slip)."""
+    sp.add_argument("--clutch-model", choices=C.CLUTCH_MODELS, help="locked: an ON clutch never slips (the "
+                    "paper's model); slip: it holds up to its holding force and slides at it beyond "
+                    "(default: the problem's [clutches] model)")
+    sp.add_argument("--holding-force", type=number(*C.CLUTCH_RANGES["holding_force"]), metavar="N",
+                    help="newtons every clutch holds before it slides (implies --clutch-model slip; default: "
+                    f"the problem's, else {C.HOLDING_STRESS / 1e4:g} N/cm^2 of strip)")
 
 
 def overrides(args) -> dict:
@@ -84,7 +97,8 @@ def overrides(args) -> dict:
     return {"motions": getattr(args, "motion", None), "template": getattr(args, "garment", None),
             "subdivision": getattr(args, "subdivision", None), "preset": getattr(args, "preset", None),
             "method": getattr(args, "solver", None), "tol": getattr(args, "tol", None),
-            "max_iterations": getattr(args, "max_iterations", None)}
+            "max_iterations": getattr(args, "max_iterations", None),
+            "clutch_model": getattr(args, "clutch_model", None), "holding_force": getattr(args, "holding_force", None)}
 
 
 def load(args):

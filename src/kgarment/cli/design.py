@@ -9,6 +9,7 @@ from kgarment.cli.common import (
     FRAMES,
     MAX_ITERATIONS,
     SUBDIVISION,
+    add_clutch_model,
     add_device,
     add_overrides,
     add_problem,
@@ -106,7 +107,11 @@ def cmd_evaluate(args) -> int:
         if path:
             check_output_file(path, flag)  # before the evaluation, not after it
     src = parse_design_source(args.design, run_required=True)
-    p = override(load_problem(src.run / "problem.toml"), motions=args.motion)
+    p = override(load_problem(src.run / "problem.toml"), motions=args.motion, clutch_model=args.clutch_model,
+                 holding_force=args.holding_force)
+    hw = p.clutch_spec().hardware
+    if args.clutch_model or args.holding_force:
+        print("clutches: " + ("locked (never slip)" if hw.model == "locked" else "slip at their holding force"))
     k = iteration_of(src)
     p, body, garment, strips = run_inputs(src.run, p)
     ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device)
@@ -123,10 +128,12 @@ def cmd_evaluate(args) -> int:
         print(f"force over the motion: {args.path} frames from rest to the target pose, ON and OFF")
         path = path_forces(ev, design, p, frames=args.path, report=lambda line: print(f"  {line}", flush=True))
         print(path.table())
-        stem = src.run / f"path-{k}"
+        # another clutch model than the run's gets files of its own (the run's path stays)
+        stem = src.run / (f"path-{k}" + (f"-{hw.model}" if args.clutch_model or args.holding_force else ""))
         atomic_write_text(stem.with_suffix(".json"), json.dumps({"run": str(src.run), "iteration": k,
                                                                   **path.to_json()}, indent=1))
-        print(f"wrote {path_plot(path, stem.with_suffix('.png'), f'{src.run.name} iteration {k}: force over the motion')}"
+        title = f"{src.run.name} iteration {k}: force over the motion" + (" (clutches slip)" if hw.model == "slip" else "")
+        print(f"wrote {path_plot(path, stem.with_suffix('.png'), title)}"
               f" and {stem.with_suffix('.json')}")
     if args.json:
         doc = {"run": str(src.run), "iteration": k, **res.to_json()}
@@ -141,7 +148,7 @@ def add_parsers(sub) -> None:
     sp = sub.add_parser("design", help="automatic design (BESO) of the reinforcement; checkpoints every iteration")
     add_problem(sp)
     add_device(sp)
-    add_overrides(sp, max_iterations=True)
+    add_overrides(sp, max_iterations=True, clutch=True)
     sp.add_argument("--out", default="runs/design", help="run folder (default runs/design)")
     sp.add_argument("--resume", metavar="RUN", help="continue a run folder where it stopped")
     sp.add_argument("--force", action="store_true", help="replace an existing run folder")
@@ -161,6 +168,7 @@ def add_parsers(sub) -> None:
     sp.add_argument("--path", type=FRAMES, metavar="K", help="also the force over the motion: K quasi-static frames "
                     "from rest to the target pose, ON and OFF (garment energy and every clutch's tension per "
                     "frame; plot and JSON written to RUN/path-ITERATION.png/.json; 10 is a good start)")
+    add_clutch_model(sp)
     add_device(sp)
     sp.set_defaults(func=cmd_evaluate)
 

@@ -9,10 +9,13 @@ from kgarment.errors import KgarmentError
 def cmd_simulate(args) -> int:
     import numpy as np
 
+    from kgarment.constants import SLIPPING
     from kgarment.design import Evaluator, load_design
+    from kgarment.design.loads import holding
     from kgarment.design.report import write_equilibrium
     from kgarment.io import check_output_folder
     from kgarment.problem import build_body, build_clutches, build_garment
+    from kgarment.sim import clutch_tensions
 
     p = load(args)
     if not args.quiet:
@@ -29,14 +32,22 @@ def cmd_simulate(args) -> int:
     g = parse_activation(args.clutches, ev.setup.n_clutches)
     keyed = ev.activation_states(g, motions, label=args.clutches)
     results = ev.equilibria(design, keyed)
-    print(f"solver: {ev.setup.solver.method}, tolerance {ev.setup.solver.tol:g}, materials {p.materials.preset}")
-    for ((m, _), _), r in zip(keyed, results):
+    print(f"solver: {ev.setup.solver.method}, tolerance {ev.setup.solver.tol:g}, materials {p.materials.preset}, "
+          f"clutches {p.clutch_spec().hardware.model}")
+    hold = holding(ev.setup.model, g)
+    for ((m, _), state), r in zip(keyed, results):
         files = write_equilibrium(out, m, body.vertices(m), body.faces, ev.setup.model, r, g,
                                   f"{garment.name} - {m} - clutches {args.clutches}")
         c = r.convergence
         terms = ", ".join(f"{k} {v:.3g}" for k, v in r.energy.items())
         print(f"{m}: {'converged' if c.converged else 'NOT CONVERGED'} in {c.iterations} iterations, "
               f"{c.wall_time:.1f} s; energy {r.total_energy:.4g} J ({terms})")
+        if ev.setup.n_clutches:
+            tension = clutch_tensions(ev.setup.model, design, state, r.x)
+            print("  clutch tension: " + ", ".join(
+                f"{c.name} {t:.1f} N" + (f" (holds {h:.0f} N{', slips' if h > 0 and t >= SLIPPING * h else ''})"
+                                         if np.isfinite(h) else "")
+                for c, t, h in zip(ev.setup.model.clutches, tension, hold)))
         print(f"  wrote {files[0]} and {files[-1]}")
     return 0 if all(r.converged for r in results) else 1
 
@@ -45,7 +56,7 @@ def add_parsers(sub) -> None:
     sp = sub.add_parser("simulate", help="equilibrium of the garment (and clutches) on the posed body")
     add_problem(sp)
     add_device(sp)
-    add_overrides(sp, materials=True, solver=True)
+    add_overrides(sp, materials=True, solver=True, clutch=True)
     sp.add_argument("--clutches", default="on", help="activation: on, off, or one value in [0, 1] per clutch (1,0,0.5)")
     sp.add_argument("--design", help="per-face design: .npy/.npz/.txt file, a run folder or RUN@ITERATION; "
                                      "default: fully reinforced")

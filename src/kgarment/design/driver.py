@@ -125,7 +125,7 @@ def write_inputs(run: Path, problem: Problem, body: Body, garment: Garment, spec
         save_clutches(run / "clutches.toml", specs, garment.rest_vertices, garment.faces, landmarks=marks)
     doc = problem_to_dict(problem, Path(home or run) / "clutches.toml" if specs else None)
     if not specs:
-        doc["clutches"] = {"clutch": []}  # no clutches, not the garment's default layout
+        doc.setdefault("clutches", {})["clutch"] = []  # no clutches, not the garment's default layout
     if problem.source and Path(problem.source).is_file():
         atomic_write_text(run / "problem.source.toml", Path(problem.source).read_text())
     atomic_write_text(run / "problem.toml", tomli_w.dumps(doc))

@@ -10,7 +10,11 @@ Per motion and clutch k (method.md section 9):
   or in parallel);
 * ``tension_N``: the force carried along the clutch at the target pose with all clutches
   ON (:func:`kgarment.sim.clutch_tensions`, what a load cell in its place measures);
-* ``loaded``: share >= :data:`kgarment.constants.LOADED_SHARE`.
+* ``loaded``: share >= :data:`kgarment.constants.LOADED_SHARE`;
+* ``holding_N``, ``slipping``: with the slip model (``[clutches] model = "slip"``,
+  :mod:`kgarment.sim.slip`) the force the clutch holds at its activation in the ON state
+  (``g^2 F_h``) and whether it slides there (tension at
+  :data:`kgarment.constants.SLIPPING` of it or more); None and False for locked clutches.
 
 Where switching all clutches on changes the garment's energy by less than
 :data:`kgarment.constants.MIN_GAIN` of its OFF energy, no clutch does anything in that
@@ -36,23 +40,29 @@ from pathlib import Path
 
 import numpy as np
 
-from kgarment.constants import LOAD_TOL, LOADED_SHARE, MIN_GAIN
+from kgarment.constants import LOAD_TOL, LOADED_SHARE, MIN_GAIN, SLIPPING
 from kgarment.sim import StateResult, clutch_tensions, solve_states
 
 
 @dataclass(frozen=True)
 class ClutchLoad:
-    """One clutch in one motion: share (dimensionless), tension_N (N), loaded."""
+    """One clutch in one motion: share (dimensionless), tension_N (N), loaded, and with the
+    slip model the force it holds (holding_N, N) and whether it slides (slipping)."""
 
     motion: str
     clutch: str
     share: float
     tension_N: float
     loaded: bool
+    holding_N: float | None = None
+    slipping: bool = False
 
     def row(self) -> dict:
-        return {"motion": self.motion, "clutch": self.clutch, "share": self.share, "tension_N": self.tension_N,
-                "loaded": self.loaded}
+        row = {"motion": self.motion, "clutch": self.clutch, "share": self.share, "tension_N": self.tension_N,
+               "loaded": self.loaded}
+        if self.holding_N is not None:  # the slip model's
+            row.update(holding_N=self.holding_N, slipping=self.slipping)
+        return row
 
 
 @dataclass(frozen=True)
@@ -94,7 +104,7 @@ class LoadReport:
 
     def table(self) -> str:
         """A plain-text table: per motion the garment energy ON/OFF, per clutch share and
-        tension (``*``: loaded)."""
+        tension (``*``: loaded, ``~``: slipping at its holding force)."""
         names = self.clutch_names
         head = f"{'motion':22s} {'E on (J)':>10s} {'E off (J)':>10s}  " + "  ".join(f"{n[:16]:>16s}" for n in names)
         lines = [head, f"{'':22s} {'':>10s} {'':>10s}  " + "  ".join(f"{'share / N':>16s}" for _ in names)]
@@ -103,9 +113,23 @@ class LoadReport:
             for n in names:
                 c = self.get(g.motion, n)
                 share = "  n/a" if not math.isfinite(c.share) else f"{c.share:5.2f}"
-                cells.append(f"{share} / {c.tension_N:6.1f}{'*' if c.loaded else ' '}".rjust(16))
+                mark = ("*" if c.loaded else " ") + ("~" if c.slipping else "")
+                cells.append(f"{share} / {c.tension_N:6.1f}{mark}".rjust(16))
             lines.append(f"{g.motion[:22]:22s} {g.energy_on_J:10.4g} {g.energy_off_J:10.4g}  " + "  ".join(cells))
+        holds = {n: max((c.holding_N for c in self.clutches if c.clutch == n and c.holding_N is not None),
+                        default=None) for n in names}
+        if any(h is not None for h in holds.values()):
+            lines.append("holding force (N): " + ", ".join(f"{n} {h:.0f}" for n, h in holds.items() if h is not None)
+                         + "; ~: slips (tension at its holding force)")
         return "\n".join(lines)
+
+
+def holding(model, activation) -> np.ndarray:
+    """(K,) force each clutch holds at ``activation`` (K,) in [0, 1]: ``g^2 F_h`` N
+    (:mod:`kgarment.sim.slip`); inf for a locked clutch or every clutch of a locked model."""
+    if not model.slips:
+        return np.full(model.n_clutches, np.inf)
+    return np.asarray(activation, dtype=np.float64) ** 2 * model.holding_force
 
 
 def on_off_equilibria(evaluator, design: np.ndarray, motions, known: dict | None = None) -> tuple[list, dict]:
@@ -171,11 +195,14 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
         garment.append(MotionEnergy(m, e_on, e_off))
         tension = clutch_tensions(model, design, states[(m, "on")], on.x, setup.solver)
         gain = e_on - e_off
+        hold = holding(model, setup.on_activation(m))
         for k, name in enumerate(names):
             share = (known[(m, f"only {name}")].total_energy - e_off) / gain if gain > MIN_GAIN * abs(e_off) \
                 else float("nan")
+            h = float(hold[k]) if math.isfinite(hold[k]) else None
             loads.append(ClutchLoad(m, name, float(share), float(tension[k]),
-                                    bool(math.isfinite(share) and share >= LOADED_SHARE)))
+                                    bool(math.isfinite(share) and share >= LOADED_SHARE), h,
+                                    bool(h is not None and h > 0 and tension[k] >= SLIPPING * h)))
     return LoadReport(tuple(loads), tuple(garment))
 
 

@@ -32,7 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from kgarment.body.motions import Motion as BodyMotion
+from kgarment.constants import SLIPPING
 from kgarment.design.evaluate import MULTISTABLE
+from kgarment.design.loads import holding
 from kgarment.errors import KgarmentError
 from kgarment.sim import SimState, clutch_tensions, garment_motions, solve_states
 
@@ -64,10 +66,26 @@ class PathFrame:
 
 @dataclass(frozen=True)
 class PathReport:
-    """Frames of every motion, ON and OFF; clutches : clutch names in tension order."""
+    """Frames of every motion, ON and OFF; clutches : clutch names in tension order;
+    holding_N : ((motion, (K,) N), ...) the force each clutch holds in the motion's ON state
+    with the slip model (:mod:`kgarment.sim.slip`), empty for locked clutches."""
 
     clutches: tuple[str, ...]
     frames: tuple[PathFrame, ...]
+    holding_N: tuple[tuple[str, tuple[float, ...]], ...] = ()
+
+    def slips(self) -> list[dict]:
+        """Per motion and clutch that reaches its holding force ON: the first frame's
+        progress ``t`` where it slides (tension at :data:`kgarment.constants.SLIPPING` of
+        the holding force or more) and the holding force (N)."""
+        out = []
+        for m, hold in self.holding_N:
+            for k, c in enumerate(self.clutches):
+                t = next((f.t for f in self.curve(m, "on") if hold[k] > 0 and f.tension_N[k] >= SLIPPING * hold[k]),
+                         None)
+                if t is not None:
+                    out.append({"motion": m, "clutch": c, "from_t": t, "holding_N": hold[k]})
+        return out
 
     @property
     def motions(self) -> list[str]:
@@ -94,8 +112,12 @@ class PathReport:
         return [f for f in self.frames if f.resolved]
 
     def to_json(self) -> dict:
-        return {"clutches": list(self.clutches), "frames": [f.row(self.clutches) for f in self.frames],
-                "summary": self.summary(), "resolved": [(f.motion, f.state, f.t) for f in self.resolved()]}
+        out = {"clutches": list(self.clutches), "frames": [f.row(self.clutches) for f in self.frames],
+               "summary": self.summary(), "resolved": [(f.motion, f.state, f.t) for f in self.resolved()]}
+        if self.holding_N:  # the slip model's
+            out["holding_N"] = {m: dict(zip(self.clutches, h)) for m, h in self.holding_N}
+            out["slips"] = self.slips()
+        return out
 
     def table(self) -> str:
         """Per motion and frame: energy ON / OFF (J) and each clutch's tension ON (N)."""
@@ -110,6 +132,10 @@ class PathReport:
         if self.resolved():
             lines.append("* a frame re-solved (from the next frame's equilibrium, the evaluator's starts, or the "
                          "target's equilibrium): the first solve had ended in another, higher-energy equilibrium")
+        if self.holding_N:
+            slips = self.slips()
+            lines += [f"{s['clutch']} slips in {s['motion']} from t = {s['from_t']:.2f} (holds {s['holding_N']:.0f} N)"
+                      for s in slips] or ["no clutch reaches its holding force"]
         return "\n".join(lines)
 
 
@@ -186,7 +212,9 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
                 tension = clutch_tensions(model, design, state(label, m, s), r.x, setup.solver)
                 out.append(PathFrame(m, s, t, float(r.total_energy), tuple(float(v) for v in tension),
                                      bool(r.converged), (m, s, i) in resolved))
-    return PathReport(tuple(names), tuple(out))
+    holding_n = tuple((m, tuple(float(h) for h in holding(model, setup.on_activation(m)))) for m in motions) \
+        if model.slips else ()
+    return PathReport(tuple(names), tuple(out), holding_n)
 
 
 def _anchor_target(evaluator, design, motions, frames, by_motion, state, results) -> set:
@@ -275,6 +303,10 @@ def path_plot(report: PathReport, path, title: str = "") -> Path:
         for f in report.resolved():
             if f.motion == m:
                 ax.axvline(f.t, color="#e76f51", lw=0.6, alpha=0.6)
+        for mm, hold in report.holding_N:  # each clutch's holding force, where it is reached or near
+            for k, h in enumerate(hold if mm == m else ()):
+                if 0 < h < 2 * max((f.tension_N[k] for f in on), default=0.0):
+                    ax.axhline(h, color=colors[k % len(colors)], lw=0.8, ls=":", alpha=0.8)
     axes[0][0].set_ylabel("clutch tension (N)")
     axes[0][0].legend(fontsize=6, loc="upper left")
     if title:

@@ -49,6 +49,7 @@ from kgarment.problem.spec import (
     BesoParams,
     BodySpec,
     ClutchesSpec,
+    ClutchHardware,
     DesignSpec,
     GarmentSpec,
     MaterialSpec,
@@ -56,6 +57,6 @@ from kgarment.problem.spec import (
     SolverSpec,
 )
 
-__all__ = ["PAPER_MOTIONS", "BesoParams", "BodySpec", "ClutchesSpec", "DesignSpec", "GarmentSpec", "MaterialSpec",
+__all__ = ["PAPER_MOTIONS", "BesoParams", "BodySpec", "ClutchesSpec", "ClutchHardware", "DesignSpec", "GarmentSpec", "MaterialSpec",
            "Problem", "SolverSpec", "build_body", "build_clutches", "build_garment", "build_model", "clutch_specs", "example_files", "example_path", "example_title", "examples_dir",
            "load_problem", "override", "parse_problem", "problem_to_dict", "solver_options"]

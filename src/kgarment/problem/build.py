@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
 from kgarment import constants as C
 from kgarment.body import Body, load_anny_body, load_mesh_sequence
 from kgarment.clutch import ClutchSpec, ClutchStrip, MeshTopology, build_clutch, load_clutches
@@ -13,9 +15,10 @@ from kgarment.clutch.landmarks import body_landmarks
 from kgarment.clutch.layouts import default_layout
 from kgarment.errors import KgarmentError
 from kgarment.garment import Garment, garment_from_mask, load_face_mask, make_garment
-from kgarment.problem.spec import Problem
+from kgarment.problem.spec import ClutchHardware, Problem
 from kgarment.sim import SimModel, SolverOptions
 from kgarment.sim import build_model as build_sim_model
+from kgarment.sim.slip import electrostatic_stress
 
 PURPOSES = ("design", "evolution", "evaluate")
 
@@ -64,9 +67,27 @@ def build_clutches(problem: Problem, body: Body, garment: Garment, specs=None) -
 
 def build_model(problem: Problem, garment: Garment, strips) -> SimModel:
     """The simulation model of the garment and ``strips`` in the problem's material preset
-    (no clutches for the passive objective)."""
+    and clutch hardware (no clutches for the passive objective)."""
     strips = list(strips) if problem.design.objective != "passive" else []
-    return build_sim_model(garment.rest_vertices, garment.faces, strips, preset=problem.materials.preset)
+    return build_sim_model(garment.rest_vertices, garment.faces, strips, preset=problem.materials.preset,
+                           holding_force=holding_forces(problem.clutch_spec().hardware, strips))
+
+
+def holding_forces(hw: ClutchHardware, strips) -> np.ndarray | None:
+    """(K,) newtons each clutch holds (``kgarment.sim.slip``), or None for locked clutches:
+    ``holding_force`` by name (or ``"*"``), else the holding stress (``holding_stress``, or the
+    electrostatic formula where ``voltage`` is set) times the strip's width x length."""
+    if hw.model == "locked":
+        return None
+    names = [s.name for s in strips]
+    given = dict(hw.holding_force)
+    unknown_names = sorted(set(given) - set(names) - {"*"})
+    if unknown_names:
+        raise KgarmentError(f"[clutches] holding_force names unknown clutch(es) {unknown_names}; "
+                            f"the clutches are: {', '.join(names) or 'none'}")
+    tau = (electrostatic_stress(hw.voltage, hw.dielectric_thickness, hw.permittivity, hw.friction)
+           if hw.voltage > 0 else hw.holding_stress)
+    return np.array([given.get(s.name, given.get("*", tau * s.width * s.length)) for s in strips], dtype=np.float64)
 
 
 def solver_options(problem: Problem, purpose: str = "design", device: str = "cpu") -> SolverOptions:

@@ -28,6 +28,7 @@ from kgarment.problem.spec import (
     BesoParams,
     BodySpec,
     ClutchesSpec,
+    ClutchHardware,
     DesignSpec,
     GarmentSpec,
     MaterialSpec,
@@ -271,8 +272,43 @@ class _DesignOwn:
     balance: float = 0.0
 
 
+HARDWARE = ("model", "holding_stress", "voltage", "dielectric_thickness", "permittivity", "friction",
+            "holding_force")
+
+
+def _hardware(c: dict) -> ClutchHardware:
+    """The clutch hardware keys of [clutches]: a holding force, stress or voltage implies
+    ``model = "slip"``; with ``model = "locked"`` they are refused (they would do nothing)."""
+    given = {k: c[k] for k in HARDWARE if k in c and k not in ("model", "holding_force")}
+    holds = [k for k in ("holding_stress", "voltage", "holding_force") if k in c]
+    model = c.get("model", "slip" if holds else "locked")
+    hw = section(ClutchHardware, "clutches", {**given, "model": model}, {"model": C.CLUTCH_MODELS}, C.CLUTCH_RANGES)
+    if model == "locked" and holds:
+        raise KgarmentError(f"[clutches] {holds[0]} does nothing with model = \"locked\" (clutches that never "
+                            "slip); use model = \"slip\" or leave it out")
+    if "holding_stress" in c and "voltage" in c:
+        raise KgarmentError("[clutches] holding_stress and voltage both set the holding stress; give one")
+    if "voltage" in c and hw.voltage <= 0:
+        raise KgarmentError(f"[clutches] voltage = {hw.voltage!r} must be > 0")
+    force = c.get("holding_force")
+    if force is None:
+        return hw
+    if not isinstance(force, dict):
+        force = {"*": force}
+    lo, hi = C.CLUTCH_RANGES["holding_force"]
+    pairs = []
+    for name, v in force.items():
+        where = "[clutches] holding_force" + ("" if name == "*" else f".{name}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise KgarmentError(f"{where} = {v!r} must be a number of newtons, or a table {{clutch = newtons}}")
+        if not lo <= v <= hi:
+            raise KgarmentError(f"{where} = {v!r} is outside [{lo:g}, {hi:g}] N")
+        pairs.append((str(name), float(v)))
+    return dataclasses.replace(hw, holding_force=tuple(pairs))
+
+
 def _clutches(c: dict, base: Path) -> ClutchesSpec:
-    check_keys("clutches", c, ("layout", "file", "clutch", "side"))
+    check_keys("clutches", c, ("layout", "file", "clutch", "side") + HARDWARE)
     layout = c.get("layout")
     if layout is not None and layout not in LAYOUTS:
         raise unknown("clutch layout", layout, LAYOUTS)
@@ -284,7 +320,8 @@ def _clutches(c: dict, base: Path) -> ClutchesSpec:
     if not isinstance(recs, list):
         raise KgarmentError("[clutches] clutch must be an array of tables ([[clutches.clutch]])")
     inline = tuple(clutch_spec_from_record(r, k, "[clutches]") for k, r in enumerate(recs))
-    return ClutchesSpec(layout, f, inline, side)
+    default = layout is None and f is None and "clutch" not in c
+    return ClutchesSpec(layout, f, inline, side, _hardware(c), default)
 
 
 def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
@@ -318,12 +355,16 @@ def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
            "solver": asdict(problem.solver), "materials": asdict(problem.materials)}
     if clutch_file is not None:
         out["clutches"] = {"file": str(Path(clutch_file).resolve())}
+    hw = problem.clutch_spec().hardware.to_dict()
+    if hw:  # written only when not the default, so earlier runs' files and hashes stay as they were
+        out.setdefault("clutches", {}).update(hw)
     return out
 
 
 def override(problem: Problem, *, motions=None, template: str | None = None, subdivision: int | None = None,
              preset: str | None = None, method: str | None = None, tol: float | None = None,
-             max_iterations: int | None = None) -> Problem:
+             max_iterations: int | None = None, clutch_model: str | None = None,
+             holding_force: float | None = None) -> Problem:
     """``problem`` with command-line overrides (None: keep the file's), validated with the
     same rules and messages as the problem file's fields."""
     changes: dict = {}
@@ -346,4 +387,14 @@ def override(problem: Problem, *, motions=None, template: str | None = None, sub
         beso = {**asdict(problem.design.beso), "max_iterations": max_iterations}
         beso = section(BesoParams, "design", beso, {"filter": FILTERS}, C.DESIGN_RANGES)
         changes["design"] = dataclasses.replace(problem.design, beso=beso)
+    if clutch_model is not None or holding_force is not None:
+        c = problem.clutch_spec()
+        raw = c.hardware.to_dict()
+        if clutch_model == "locked":  # the file's holding force or stress does nothing then
+            raw = {k: v for k, v in raw.items() if k not in ("holding_stress", "voltage", "holding_force")}
+        if clutch_model is not None:
+            raw["model"] = clutch_model
+        if holding_force is not None:
+            raw["holding_force"] = holding_force
+        changes["clutches"] = dataclasses.replace(c, hardware=_hardware(raw), default=False)
     return dataclasses.replace(problem, **changes)

@@ -42,17 +42,46 @@ class GarmentSpec:
 
 
 @dataclass(frozen=True)
+class ClutchHardware:
+    """[clutches] hardware: how an ON clutch holds (``kgarment.sim.slip``).
+
+    model : "locked" (the paper's: an ON clutch never slips) or "slip" (it holds up to its
+        holding force and slides at it beyond).
+    holding_stress : Pa of overlap (width x length) a clutch holds (21 N/cm^2 measured).
+    voltage : V; > 0: the holding stress from the parallel-plate formula with
+        ``dielectric_thickness`` (m), ``permittivity`` (relative) and ``friction``.
+    holding_force : ((clutch name or "*", N), ...) overriding the stress per clutch.
+    """
+
+    model: str = "locked"
+    holding_stress: float = C.HOLDING_STRESS
+    voltage: float = 0.0
+    dielectric_thickness: float = C.DIELECTRIC_THICKNESS
+    permittivity: float = C.DIELECTRIC_PERMITTIVITY
+    friction: float = C.CLUTCH_FRICTION
+    holding_force: tuple[tuple[str, float], ...] = ()
+
+    def to_dict(self) -> dict:
+        """The fields that differ from the defaults (TOML-ready; {} for the default)."""
+        base = ClutchHardware()
+        out = {k: v for k, v in asdict(self).items() if v != getattr(base, k) and k != "holding_force"}
+        if self.holding_force:
+            out["holding_force"] = (self.holding_force[0][1] if self.holding_force[0][0] == "*"
+                                    else dict(self.holding_force))
+        return out
+
+
+@dataclass(frozen=True)
 class ClutchesSpec:
-    """[clutches]: a default layout by name, a clutch file, and/or inline clutches."""
+    """[clutches]: a default layout by name, a clutch file, and/or inline clutches (none of
+    them: the garment's default layout), and the clutch hardware."""
 
     layout: str | None = None
     file: Path | None = None
     inline: tuple = ()
     side: str = "R"
-
-    @property
-    def empty(self) -> bool:
-        return self.layout is None and self.file is None and not self.inline
+    hardware: ClutchHardware = field(default_factory=ClutchHardware)
+    default: bool = False  # the section names no clutches (only hardware): the default layout
 
 
 @dataclass(frozen=True)
@@ -201,11 +230,12 @@ class Problem:
 
     def clutch_spec(self) -> ClutchesSpec:
         """The clutches section, or the garment template's default layout when absent."""
-        if self.clutches is not None:
+        if self.clutches is not None and not self.clutches.default:
             return self.clutches
         t = (self.garment.template or "").split(".")[0]
         side = "L" if (self.garment.template or "").endswith(".left") else "R"
-        return ClutchesSpec(layout=DEFAULT_LAYOUT.get(t), side=side)
+        hw = self.clutches.hardware if self.clutches is not None else ClutchHardware()
+        return ClutchesSpec(layout=DEFAULT_LAYOUT.get(t), side=side, hardware=hw)
 
     def describe(self) -> str:
         """The resolved problem, in full, for the start of a run."""
@@ -223,7 +253,9 @@ class Problem:
         c = self.clutch_spec()
         parts = ([f"layout {c.layout} ({c.side})"] if c.layout else []) + ([f"file {c.file}"] if c.file else []) \
             + ([f"{len(c.inline)} inline"] if c.inline else [])
-        lines.append(f"clutches: {'; '.join(parts) or 'none'}")
+        hw = c.hardware.to_dict()
+        lines.append(f"clutches: {'; '.join(parts) or 'none'}"
+                     + (f"; {', '.join(f'{k} {v}' for k, v in hw.items())}" if hw else ""))
         lines.append("design: " + ", ".join(f"{k} {v}" for k, v in self.design.flat().items()))
         lines.append("solver: " + ", ".join(f"{k} {v}" for k, v in asdict(self.solver).items()))
         lines.append(f"materials: preset {self.materials.preset}")

@@ -181,7 +181,8 @@ def problem_document(problem: Problem, has_clutches: bool) -> dict:
     """A problem as a TOML-ready dict whose clutches are the session's ``clutches.toml``
     (relative, so the folder can move); an explicit empty list when there are none."""
     doc = problem_to_dict(problem)
-    doc["clutches"] = {"file": "clutches.toml"} if has_clutches else {"clutch": []}
+    hardware = doc.get("clutches", {})  # the clutch hardware, where not the default
+    doc["clutches"] = {**hardware, **({"file": "clutches.toml"} if has_clutches else {"clutch": []})}
     return doc
 
 
