@@ -209,3 +209,22 @@ def test_the_peak_force_target_compares_the_largest_tension_over_the_motion():
     (t,) = force_targets(exp([10.0, 20.0], [25.0, 5.0]))  # the peak, wherever it is in the motion
     assert not t.ok and "20 against 25 N" in t.detail
     assert force_targets({"x": {"name": "x", "motions": ["m"]}}) == []
+
+
+def test_a_run_folder_made_with_other_clutch_hardware_is_refused(tmp_path):
+    """A reproduction with slipping clutches never reuses a locked one's design runs."""
+    import tomli_w
+
+    from kgarment.errors import KgarmentError
+    from kgarment.problem import problem_to_dict
+    from kgarment.reproduce.catalog import BY_NAME, RESOLUTIONS
+    from kgarment.reproduce.experiments import _check_same_problem, experiment_problem
+
+    exp, res = BY_NAME["arm_extension"], RESOLUTIONS["tiny"]
+    locked = experiment_problem(exp, res)
+    (tmp_path / "problem.toml").write_text(tomli_w.dumps(problem_to_dict(locked)))
+    _check_same_problem(locked, tmp_path)
+    slip = experiment_problem(exp, res, overrides={"holding_force": 50.0})
+    assert slip.clutch_spec().hardware.model == "slip"
+    with pytest.raises(KgarmentError, match="other clutch hardware"):
+        _check_same_problem(slip, tmp_path)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 
 from kgarment import constants as C
-from kgarment.cli.common import add_device
+from kgarment.cli.common import add_clutch_model, add_device
 from kgarment.errors import KgarmentError
 
 
@@ -29,7 +29,9 @@ def cmd_reproduce(args) -> int:
         return 0
     res = RESOLUTIONS[args.resolution]
     print(f"reproducing {len(exps)} experiment(s) at {res.name} resolution"
-          + (f" with the {args.preset} material preset" if args.preset else "") + f" into {out} "
+          + (f" with the {args.preset} material preset" if args.preset else "")
+          + (f" with clutches {args.clutch_model or 'slip'}" if args.clutch_model or args.holding_force else "")
+          + f" into {out} "
           f"(finished runs and evaluations there are reused): {', '.join(e.name for e in exps)}")
     t0 = time.time()
     with Progress(TextColumn("[bold]{task.fields[run]:34s}"), TextColumn("it {task.completed:>3}"), BarColumn(),
@@ -43,7 +45,8 @@ def cmd_reproduce(args) -> int:
                        description=f"area {100 * row['area']:5.1f}%  objective {row['objective']:8.4f}  "
                                    f"{row['seconds']:5.1f} s/it")
 
-        doc = reproduce(out, res.name, args.experiments, args.device, progress, args.preset)
+        doc = reproduce(out, res.name, args.experiments, args.device, progress,
+                        {"preset": args.preset, "clutch_model": args.clutch_model, "holding_force": args.holding_force})
     md, page = write_report(out, doc)
     print(f"done in {(time.time() - t0) / 60:.1f} min; report: {page} (Markdown twin: {md}); runs in {out / 'runs'}")
     return 0
@@ -66,5 +69,6 @@ def add_parsers(sub) -> None:
     sp.add_argument("--preset", choices=C.PRESET_NAMES, help="material preset of every experiment (default: the "
                     "example files', paper); give each preset its own --out")
     sp.add_argument("--report-only", action="store_true", help="rewrite the report from OUT/data.json")
+    add_clutch_model(sp)  # give a clutch model its own --out too
     add_device(sp)
     sp.set_defaults(func=cmd_reproduce)

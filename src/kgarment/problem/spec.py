@@ -61,6 +61,9 @@ class ClutchHardware:
     friction: float = C.CLUTCH_FRICTION
     holding_force: tuple[tuple[str, float], ...] = ()
 
+    def __str__(self) -> str:
+        return ", ".join(f"{k} {v}" for k, v in self.to_dict().items()) or "model locked"
+
     def to_dict(self) -> dict:
         """The fields that differ from the defaults (TOML-ready; {} for the default)."""
         base = ClutchHardware()

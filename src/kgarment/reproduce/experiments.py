@@ -48,11 +48,12 @@ log = logging.getLogger(__name__)
 
 
 def experiment_problem(exp: Experiment, res: Resolution, objective: str = "active",
-                       preset: str | None = None) -> Problem:
+                       overrides: dict | None = None) -> Problem:
     """The example problem of ``exp`` at resolution ``res`` (and with ``objective``, and the
-    material ``preset`` instead of the example's when given; the balance term belongs to
+    problem ``overrides`` of :func:`kgarment.problem.override` -- the material ``preset``,
+    the ``clutch_model``, the ``holding_force`` -- where given; the balance term belongs to
     the active objective and is dropped for the others)."""
-    p = override(load_problem(example_path(exp.name)), preset=preset)
+    p = override(load_problem(example_path(exp.name)), **(overrides or {}))
     g, d = p.garment, p.design
     if res.subdivision is not None:
         g = dataclasses.replace(g, subdivision=res.subdivision)
@@ -108,6 +109,7 @@ def _check_same_problem(problem: Problem, folder: Path) -> None:
     """Refuse to reuse a run folder made for another problem (materials, resolution, BESO)."""
     old = load_problem(folder / "problem.toml")
     for what, a, b in (("materials", old.materials, problem.materials), ("design", old.design, problem.design),
+                       ("clutch hardware", old.clutch_spec().hardware, problem.clutch_spec().hardware),
                        ("garment subdivision", old.garment.subdivision, problem.garment.subdivision)):
         if a != b:
             raise KgarmentError(f"{folder} was designed with other {what} ({a} instead of {b}); "

@@ -66,13 +66,13 @@ def _run_summary(outcome) -> dict:
 
 
 def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, device: str,
-                   progress: Callable | None, preset: str | None = None) -> dict:
+                   progress: Callable | None, overrides: dict | None = None) -> dict:
     """Designs, baselines and evaluations of one experiment -> its results entry."""
     img = out / "img"
     t0 = time.time()
-    problem = experiment_problem(exp, res, preset=preset)
+    problem = experiment_problem(exp, res, overrides=overrides)
     ours = design_run(problem, out / "runs" / exp.name, device, progress)
-    comp = design_run(experiment_problem(exp, res, "compliance", preset), out / "runs" / f"{exp.name}-compliance",
+    comp = design_run(experiment_problem(exp, res, "compliance", overrides), out / "runs" / f"{exp.name}-compliance",
                       device, progress)
     ev = CachedEvaluator(problem, f"{exp.name}@{res.name}", cache, device)
     budget = problem.design.beso.target_area
@@ -85,7 +85,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         "full": np.ones(g.n_faces),
     }
     entry = {"name": exp.name, "title": exp.title, "group": exp.group, "multi": exp.multi,
-             "preset": problem.materials.preset,
+             "preset": problem.materials.preset, "clutch_model": problem.clutch_spec().hardware.model,
              "paper": {m: list(v) for m, v in exp.paper.items()}, "budget": budget,
              "garment": g.name, "faces": int(g.n_faces), "clutches": len(ev.strips), "motions": ev.motions,
              "states": ev.n_states, "run": _run_summary(ours), "compliance_run": _run_summary(comp),
@@ -120,7 +120,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
 
 
 def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationCache, device: str,
-                   preset: str | None = None) -> dict | None:
+                   overrides: dict | None = None) -> dict | None:
     """The group's designs evaluated on its multi-motion problem: rows = motions evaluated
     on, columns = the motion each design was optimised for, and "all" (the multi design)."""
     multi = MULTI_OF_GROUP.get(group)
@@ -129,7 +129,7 @@ def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationC
     singles = [e for e in results.values() if e["group"] == group and not e["multi"]]
     if not singles:
         return None
-    ev = CachedEvaluator(experiment_problem(BY_NAME[multi], res, preset=preset), f"{multi}@{res.name}", cache, device)
+    ev = CachedEvaluator(experiment_problem(BY_NAME[multi], res, overrides=overrides), f"{multi}@{res.name}", cache, device)
     columns = {}
     for e in singles:
         with np.load(out / "designs" / f"{e['name']}.npz") as z:
@@ -143,7 +143,7 @@ def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationC
 
 
 def reproduce(out: Path, resolution: str = "preview", experiments: str | None = None, device: str = "cpu",
-              progress: Callable | None = None, preset: str | None = None) -> dict:
+              progress: Callable | None = None, overrides: dict | None = None) -> dict:
     """Run the selected experiments at ``resolution`` (with the material ``preset``, default:
     the example files', ``paper``) into ``out``; returns (and writes
     ``out/data.json``, summarised in ``out/results.json``) everything the report shows."""
@@ -157,15 +157,17 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
     results: dict = {}
     for exp in exps:
         log.info("experiment %s (%s resolution)", exp.name, res.name)
-        results[exp.name] = run_experiment(exp, res, out, cache, device, progress, preset)
+        results[exp.name] = run_experiment(exp, res, out, cache, device, progress, overrides)
     cross = {}
     for group in ("sleeve", "shirt"):
-        m = cross_evaluate(group, results, res, out, cache, device, preset)
+        m = cross_evaluate(group, results, res, out, cache, device, overrides)
         if m is not None:
             cross[group] = m
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # this process; workers are alike
     presets = sorted({e["preset"] for e in results.values()})
-    doc = {"resolution": res.__dict__, "preset": ", ".join(presets), "experiments": results, "cross": cross,
+    doc = {"resolution": res.__dict__, "preset": ", ".join(presets),
+           "clutch_model": ", ".join(sorted({e.get("clutch_model", "locked") for e in results.values()})),
+           "experiments": results, "cross": cross,
            "wall_seconds": time.time() - t0, "peak_rss_mb": peak, "device": device}
     atomic_write_text(out / DATA, json.dumps(doc, indent=1))
     atomic_write_text(out / "results.json", json.dumps(summary(doc), indent=1))

@@ -126,6 +126,9 @@ def force_lines(e: dict) -> list[str]:
         if again:
             notes.append(f"{kind}: {len(again)} frame(s) re-solved (the first solve had ended in another, "
                          "higher-energy equilibrium)")
+        for sl in doc.get("slips", []):  # the slip model's (kgarment.sim.slip)
+            notes.append(f"{kind}: {sl['clutch']} slides at its holding force ({sl['holding_N']:.0f} N) in "
+                         f"{sl['motion']} from t = {sl['from_t']:.2f}")
     return ["Force over the motion (" + str(n) + " frames from rest to the target pose; force: the largest clutch "
             "tension; work: the garment's energy at the target), ON / OFF.", ""] + \
         md_table(["motion", "design", "peak force (N)", "mean force (N)", "work (J)"], rows) + \
@@ -173,7 +176,10 @@ def build_markdown(doc: dict, figures: dict) -> str:
             if loads:
                 kinds = [k for k in ("ours", "manual") if e["evaluations"].get(k, {}).get("clutches")]
                 md += ["Clutch loads: share of the ON - OFF garment energy with only that clutch ON / tension "
-                       "with all ON (* loaded: share at least 0.10).", ""]
+                       "with all ON (* loaded: share at least 0.10"
+                       + ("; ~ slides at its holding force" if any(c.get("slipping") for k in kinds
+                                                                  for c in e["evaluations"][k]["clutches"]) else "")
+                       + ").", ""]
                 md += md_table(["motion", "clutch", *kinds], loads)
             md += plan_lines(e)
             md += force_lines(e)

@@ -86,7 +86,8 @@ def load_rows(e: dict) -> list[list[str]]:
         for k in kinds:
             x = next(y for y in ev[k]["clutches"] if y["motion"] == c["motion"] and y["clutch"] == c["clutch"])
             share = "n/a" if x["share"] != x["share"] else f"{x['share']:.2f}"
-            cells.append(f"{share} / {x['tension_N']:.0f} N" + (" *" if x["loaded"] else ""))
+            cells.append(f"{share} / {x['tension_N']:.0f} N" + (" *" if x["loaded"] else "")
+                         + (" ~" if x.get("slipping") else ""))
         rows.append([c["motion"], c["clutch"], *cells])
     return rows
 
@@ -122,7 +123,9 @@ def comparison_paragraph(doc: dict) -> str:
             "paper's STAR body, with its own rig and motion magnitudes), our shirt clutches follow the paper's layout "
             "but are 10-13.5 cm long rather than 15 cm, the garment is at the report's resolution (subdivision 0 has "
             "18 mm edges, 4x coarser than the paper's), the `" + doc.get("preset", "paper") + "` material preset is used ("
-            + PRESET_WORDS.get(doc.get("preset", "paper"), "") + "), and our Newton solver finds tighter equilibria than the paper's L-BFGS. rho is a ratio to "
+            + PRESET_WORDS.get(doc.get("preset", "paper"), "") + ")"
+            + (", the clutches slip at their holding force (the paper's never do)" if "slip" in doc.get("clutch_model", "")
+               else "") + ", and our Newton solver finds tighter equilibria than the paper's L-BFGS. rho is a ratio to "
             "the fully reinforced garment, so it depends on all of these."
             + (f" Where we fall more than 2x short ({names([r for r in under if r[0] < 0.5])}), see the experiment "
                "below: its design carries no load path through the clutch for that motion." if any(
