@@ -78,6 +78,9 @@ def add_overrides(sp, *, motion: bool = True, garment: bool = True, subdivision:
                                                   "[solver] tol, capped at the evaluation tolerance 1e-4)")
     if max_iterations:
         sp.add_argument("--max-iterations", type=MAX_ITERATIONS, help="stop after this many iterations")
+        sp.add_argument("--refine", action="store_true", help="coarse-to-fine: evolve the design at subdivision 0 "
+                        "(and each level up to the garment's, in RUN/level<L>) and finish at the garment's level "
+                        "(the problem's [design] levels otherwise)")
     if clutch:
         add_clutch_model(sp)
 
@@ -98,7 +101,8 @@ def overrides(args) -> dict:
             "subdivision": getattr(args, "subdivision", None), "preset": getattr(args, "preset", None),
             "method": getattr(args, "solver", None), "tol": getattr(args, "tol", None),
             "max_iterations": getattr(args, "max_iterations", None),
-            "clutch_model": getattr(args, "clutch_model", None), "holding_force": getattr(args, "holding_force", None)}
+            "clutch_model": getattr(args, "clutch_model", None), "holding_force": getattr(args, "holding_force", None),
+            "refine": getattr(args, "refine", False)}
 
 
 def load(args):

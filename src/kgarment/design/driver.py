@@ -28,7 +28,8 @@ from kgarment.design.beso import design_values
 from kgarment.design.control import Control, control_check
 from kgarment.design.evaluate import DesignEvaluation, Evaluator
 from kgarment.design.loads import load_chart
-from kgarment.design.loop import LoopState, initial_state, run_loop
+from kgarment.design.loop import LoopState, initial_state, iterate, run_loop
+from kgarment.design.refine import coarse_levels, run_coarse, transfer
 from kgarment.design.report import finish_run
 from kgarment.design.run import best_iteration, check_run_folder, load_checkpoint, save_checkpoint
 from kgarment.design.setup import DesignSetup, setup_from_problem
@@ -161,6 +162,8 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
         if cancelled is not None and not st.done and cancelled():
             raise Cancelled()
 
+    if coarse_levels(dr.problem) and dr.state.iteration == 0:
+        dr = start_from_coarse(dr, after, cancelled)
     st = run_loop(dr.setup, dr.state, checkpoint=lambda s: save_checkpoint(dr.run, s), progress=after)
     dr = dataclasses.replace(dr, state=st)
     if not final:
@@ -171,6 +174,26 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
     equilibria = None if evaluation is None else {s.key: s.result for s in evaluation.states}
     paths = finish_run(dr.run, dr.setup, st, dr.body, dr.garment, list(dr.strips), k, equilibria) + paths
     return dataclasses.replace(dr, paths=tuple(paths), evaluation=evaluation)
+
+
+def start_from_coarse(dr: DesignRun, after: Callable[[LoopState], None],
+                      cancelled: Callable[[], bool] | None = None) -> DesignRun:
+    """Coarse-to-fine (:mod:`kgarment.design.refine`): the coarse levels in their own run
+    folders (``RUN/level<L>``, resumed where they stopped), then this run's iteration 0 and
+    the coarse run's state transferred to this level; checkpointed."""
+    if not (dr.run / "checkpoint.npz").is_file():
+        save_checkpoint(dr.run, dr.state)  # resumable while the coarse levels run
+    device = dr.setup.solver.device
+
+    def open_level(problem: Problem, folder: Path, resume: bool) -> DesignRun:
+        return open_run(problem, folder, resume=resume, force=not resume, device=device, body=dr.body)
+
+    coarse_setup, coarse = run_coarse(dr.run, dr.problem, open_level, cancelled=cancelled)
+    st = iterate(dr.setup, dr.state)  # the fully reinforced garment at this level: the references
+    st = transfer(coarse_setup, coarse, dr.setup, st)
+    save_checkpoint(dr.run, st)
+    after(st)
+    return dataclasses.replace(dr, state=st)
 
 
 def check_control(dr: DesignRun, st: LoopState) -> list[Control]:

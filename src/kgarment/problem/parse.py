@@ -59,6 +59,7 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
     garment = _garment(data.get("garment", {}), base)
     clutches = _clutches(data["clutches"], base) if "clutches" in data else None
     design = _design(data.get("design", {}))
+    _check_levels(design.levels, garment.subdivision)
     solver = dict(data.get("solver", {}))
     mats = dict(data.get("materials", {}))
     check_keys("materials", mats, ("preset",))
@@ -252,13 +253,30 @@ def _subdivision(sub) -> int:
 def _design(d: dict) -> DesignSpec:
     """[design]: the objective, protection and the BESO fields (flat keys) -> DesignSpec."""
     beso_keys = {f.name for f in dataclasses.fields(BesoParams)}
-    own = {f.name for f in dataclasses.fields(DesignSpec)} - {"beso"}
-    check_keys("design", d, sorted(own) + [f.name for f in dataclasses.fields(BesoParams)])
+    own = {f.name for f in dataclasses.fields(DesignSpec)} - {"beso", "levels"}
+    check_keys("design", d, sorted(own) + ["levels"] + [f.name for f in dataclasses.fields(BesoParams)])
     ranges = C.DESIGN_RANGES
     beso = section(BesoParams, "design", {k: v for k, v in d.items() if k in beso_keys}, {"filter": FILTERS}, ranges)
     rest = section(_DesignOwn, "design", {k: v for k, v in d.items() if k in own},
                    {"objective": OBJECTIVE_NAMES}, ranges)
-    return DesignSpec(beso=beso, **asdict(rest))
+    return DesignSpec(beso=beso, **asdict(rest), levels=_levels(d.get("levels", [])))
+
+
+def _levels(v) -> tuple[int, ...]:
+    """[design] levels: coarser subdivision levels, increasing (checked against the garment's
+    level in :func:`_check_levels`)."""
+    if not isinstance(v, list) or any(isinstance(x, bool) or not isinstance(x, int) for x in v):
+        raise KgarmentError(f"[design] levels = {v!r} must be a list of subdivision levels, e.g. [0]")
+    if any(x not in C.SUBDIVISIONS for x in v) or list(v) != sorted(set(v)):
+        raise KgarmentError(f"[design] levels = {v!r} must be increasing levels out of "
+                            f"{', '.join(map(str, C.SUBDIVISIONS))}")
+    return tuple(v)
+
+
+def _check_levels(levels: tuple[int, ...], subdivision: int) -> None:
+    if levels and levels[-1] >= subdivision:
+        raise KgarmentError(f"[design] levels = {list(levels)}: each must be below the garment's subdivision "
+                            f"{subdivision} (the level the design finishes at)")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -364,7 +382,7 @@ def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
 def override(problem: Problem, *, motions=None, template: str | None = None, subdivision: int | None = None,
              preset: str | None = None, method: str | None = None, tol: float | None = None,
              max_iterations: int | None = None, clutch_model: str | None = None,
-             holding_force: float | None = None) -> Problem:
+             holding_force: float | None = None, refine: bool = False) -> Problem:
     """``problem`` with command-line overrides (None: keep the file's), validated with the
     same rules and messages as the problem file's fields."""
     changes: dict = {}
@@ -387,6 +405,9 @@ def override(problem: Problem, *, motions=None, template: str | None = None, sub
         beso = {**asdict(problem.design.beso), "max_iterations": max_iterations}
         beso = section(BesoParams, "design", beso, {"filter": FILTERS}, C.DESIGN_RANGES)
         changes["design"] = dataclasses.replace(problem.design, beso=beso)
+    if refine:  # coarse-to-fine from level 0 (kgarment.design.refine)
+        d = changes.get("design", problem.design)
+        changes["design"] = dataclasses.replace(d, levels=tuple(range(changes["garment"].subdivision)))
     if clutch_model is not None or holding_force is not None:
         c = problem.clutch_spec()
         raw = c.hardware.to_dict()

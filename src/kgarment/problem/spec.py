@@ -134,7 +134,10 @@ class DesignSpec:
     lockout : weight of the penalty on the energy that other motions' activation sets
     store in a motion (0: none; :mod:`kgarment.design.objective`);
     balance : weight of the reward for every clutch of a motion's set carrying load on its
-    own (``solo:`` states; 0: none; :mod:`kgarment.design.objective`).
+    own (``solo:`` states; 0: none; :mod:`kgarment.design.objective`);
+    levels : coarser subdivision levels to design at first, increasing, each below the
+    garment's (coarse-to-fine, :mod:`kgarment.design.refine`); () designs at the garment's
+    level throughout.
     """
 
     objective: str = "active"
@@ -143,6 +146,7 @@ class DesignSpec:
     protect_clutch_margin: float = 0.0
     lockout: float = 0.0
     balance: float = 0.0
+    levels: tuple[int, ...] = ()
 
     def flat(self) -> dict:
         """The [design] table as written in a problem file (BESO fields flattened)."""
@@ -151,6 +155,8 @@ class DesignSpec:
                    lockout=self.lockout)
         if self.balance:  # written only when used: problem files and hashes of earlier runs stay as they were
             out["balance"] = self.balance
+        if self.levels:
+            out["levels"] = list(self.levels)
         return out
 
 
