@@ -298,25 +298,24 @@ def test_workers_die_with_their_parent(tmp_path):
                 os.kill(p, signal.SIGKILL)
 
 
-def test_a_holding_force_naming_an_unknown_clutch(tmp_path, monkeypatch, capsys, anny_body):
-    monkeypatch.chdir(tmp_path)
-    (tmp_path / "p.toml").write_text('[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n'
-                                     '[motions]\nuse = ["arm_flexion.right"]\n[clutches]\nlayout = "sleeve"\n'
-                                     'holding_force = { "elbow_outer.L" = 50 }\n')
-    rc, _, err = run_cli(["design", "p.toml", "--out", "run"], capsys)
-    assert_one_line(rc, err, "[clutches] holding_force names unknown clutch(es) ['elbow_outer.L']; "
-                             "the clutches are: elbow_outer.R, elbow_inner.R")
-    assert not (tmp_path / "run").exists()
+# (the part of a sleeve problem that names a clutch, message): clutch names are known once
+# the clutches are built
+UNKNOWN_CLUTCH = [
+    ('holding_force = { "elbow_outer.L" = 50 }\n',
+     "[clutches] holding_force names unknown clutch(es) ['elbow_outer.L']; the clutches are: elbow_outer.R, "
+     "elbow_inner.R"),
+    ('[motions.activation]\n"arm_flexion.right" = ["elbow_outer.L"]\n',
+     "[motions.activation] arm_flexion.right: unknown clutch 'elbow_outer.L'; the clutches are: elbow_outer.R, "
+     "elbow_inner.R"),
+]
 
 
-def test_an_activation_set_naming_an_unknown_clutch(tmp_path, monkeypatch, capsys, anny_body):
-    """Clutch names are known once the clutches are built: one line naming the motion and
-    the clutches there are, and no run folder left behind."""
+@pytest.mark.parametrize("toml, message", UNKNOWN_CLUTCH, ids=["holding_force", "activation"])
+def test_an_unknown_clutch_name(toml, message, tmp_path, monkeypatch, capsys, anny_body):
+    """One line naming the field and the clutches there are, and no run folder left behind."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "p.toml").write_text('[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n'
-                                     '[motions]\nuse = ["arm_flexion.right"]\n[clutches]\nlayout = "sleeve"\n'
-                                     '[motions.activation]\n"arm_flexion.right" = ["elbow_outer.L"]\n')
+                                     '[motions]\nuse = ["arm_flexion.right"]\n[clutches]\nlayout = "sleeve"\n' + toml)
     rc, _, err = run_cli(["design", "p.toml", "--out", "run"], capsys)
-    assert_one_line(rc, err, "[motions.activation] arm_flexion.right: unknown clutch 'elbow_outer.L'; "
-                             "the clutches are: elbow_outer.R, elbow_inner.R")
+    assert_one_line(rc, err, message)
     assert not (tmp_path / "run").exists()

@@ -117,7 +117,7 @@ def test_force_over_the_motion(runs, anny_body, capsys):
     np.testing.assert_allclose(motions[index[-1][0]].garment_x0, target.garment_x0, atol=1e-9)
     assert not np.allclose(motions[index[0][0]].garment_x0, target.garment_x0, atol=1e-3)
     assert main(["-q", "evaluate", str(cli), "--path", "2", "--no-loads"]) == 0
-    (written,) = cli.glob("path-*.json")  # path-ITERATION of the run's final design
+    (written,) = [p for p in cli.glob("path-*.json") if not p.stem.endswith("-slip")]  # path-ITERATION
     doc = json.loads(written.read_text())
     assert written.with_suffix(".png").stat().st_size > 10_000
     frames = doc["frames"]
@@ -128,3 +128,23 @@ def test_force_over_the_motion(runs, anny_body, capsys):
     s = doc["summary"][0]
     assert s["work_on_J"] == pytest.approx(on[1][1]) and s["peak_on_N"] >= s["mean_on_N"]
     assert "force over the motion" in capsys.readouterr().out
+
+
+def test_force_over_the_motion_with_slipping_clutches(runs, capsys):
+    """``evaluate --holding-force N --path K``: the same run judged with clutches that slide
+    at N newtons; its files go beside the run's own (path-K-slip), and the ON tension stays
+    near N once the clutch slides, from where the report says."""
+    cli, _, _ = runs
+    k = json.loads((cli / "final" / "evaluation.json").read_text())["iteration"]
+    locked = json.loads((cli / "final" / "evaluation.json").read_text())
+    t_locked = max(c["tension_N"] for c in locked["clutches"])
+    hold = 0.5 * t_locked
+    assert main(["-q", "evaluate", str(cli), "--path", "2", "--holding-force", f"{hold}", "--json",
+                 str(cli / "slip.json")]) == 0
+    doc = json.loads((cli / f"path-{k}-slip.json").read_text())
+    assert doc["holding_N"] == {"arm_flexion.right": {"elbow_outer.R": pytest.approx(hold)}}
+    (c,) = json.loads((cli / "slip.json").read_text())["clutches"]
+    assert c["slipping"] and c["holding_N"] == pytest.approx(hold)
+    assert hold <= c["tension_N"] < 1.2 * hold  # at its holding force (+ the guide and the hardening)
+    assert doc["slips"] and doc["slips"][0]["clutch"] == "elbow_outer.R"
+    assert "slips in arm_flexion.right from t =" in capsys.readouterr().out

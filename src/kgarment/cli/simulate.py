@@ -11,7 +11,6 @@ def cmd_simulate(args) -> int:
 
     from kgarment.constants import SLIPPING
     from kgarment.design import Evaluator, load_design
-    from kgarment.design.loads import holding
     from kgarment.design.report import write_equilibrium
     from kgarment.io import check_output_folder
     from kgarment.problem import build_body, build_clutches, build_garment
@@ -34,7 +33,7 @@ def cmd_simulate(args) -> int:
     results = ev.equilibria(design, keyed)
     print(f"solver: {ev.setup.solver.method}, tolerance {ev.setup.solver.tol:g}, materials {p.materials.preset}, "
           f"clutches {p.clutch_spec().hardware.model}")
-    hold = holding(ev.setup.model, g)
+    hold = ev.setup.model.holding(g)
     for ((m, _), state), r in zip(keyed, results):
         files = write_equilibrium(out, m, body.vertices(m), body.faces, ev.setup.model, r, g,
                                   f"{garment.name} - {m} - clutches {args.clutches}")

@@ -124,14 +124,6 @@ class LoadReport:
         return "\n".join(lines)
 
 
-def holding(model, activation) -> np.ndarray:
-    """(K,) force each clutch holds at ``activation`` (K,) in [0, 1]: ``g^2 F_h`` N
-    (:mod:`kgarment.sim.slip`); inf for a locked clutch or every clutch of a locked model."""
-    if not model.slips:
-        return np.full(model.n_clutches, np.inf)
-    return np.asarray(activation, dtype=np.float64) ** 2 * model.holding_force
-
-
 def on_off_equilibria(evaluator, design: np.ndarray, motions, known: dict | None = None) -> tuple[list, dict]:
     """([((motion, "on" | "off"), SimState)], {key: StateResult}): per motion of ``motions``
     the ON state (its activation set, every clutch by default) and OFF (none), whatever the
@@ -195,7 +187,7 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
         garment.append(MotionEnergy(m, e_on, e_off))
         tension = clutch_tensions(model, design, states[(m, "on")], on.x, setup.solver)
         gain = e_on - e_off
-        hold = holding(model, setup.on_activation(m))
+        hold = model.holding(setup.on_activation(m))
         for k, name in enumerate(names):
             share = (known[(m, f"only {name}")].total_energy - e_off) / gain if gain > MIN_GAIN * abs(e_off) \
                 else float("nan")

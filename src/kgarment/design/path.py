@@ -34,7 +34,6 @@ import numpy as np
 from kgarment.body.motions import Motion as BodyMotion
 from kgarment.constants import SLIPPING
 from kgarment.design.evaluate import MULTISTABLE
-from kgarment.design.loads import holding
 from kgarment.errors import KgarmentError
 from kgarment.sim import SimState, clutch_tensions, garment_motions, solve_states
 
@@ -212,7 +211,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
                 tension = clutch_tensions(model, design, state(label, m, s), r.x, setup.solver)
                 out.append(PathFrame(m, s, t, float(r.total_energy), tuple(float(v) for v in tension),
                                      bool(r.converged), (m, s, i) in resolved))
-    holding_n = tuple((m, tuple(float(h) for h in holding(model, setup.on_activation(m)))) for m in motions) \
+    holding_n = tuple((m, tuple(float(h) for h in model.holding(setup.on_activation(m)))) for m in motions) \
         if model.slips else ()
     return PathReport(tuple(names), tuple(out), holding_n)
 

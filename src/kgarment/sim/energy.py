@@ -66,18 +66,18 @@ def slider_arrays(model: SimModel, activation) -> tuple[np.ndarray, np.ndarray, 
     stiffness ``k`` (q,) N/m and holding force per unit width ``cap`` (q,) N/m -- the
     elements of every clutch with a finite holding force and activation g > 0."""
     g = np.asarray(activation, dtype=np.float64).reshape(-1)
+    hold = model.holding(g)
     ids, ks, caps = [], [], []
-    if model.slips:
-        pre, fo = model.preset, model.face_offsets
-        s_off = pre.young_clutch_off * pre.thick_clutch_off
-        for k in range(model.n_clutches):
-            if g[k] <= 0.0 or not np.isfinite(model.holding_force[k]):
-                continue
-            yc, tc = clutch_material(g[k], pre)
-            e = np.arange(fo[k + 1], fo[k + 2])
-            ids.append(e)
-            ks.append(np.full(len(e), max(yc * tc - s_off, 1e-12 * s_off)))
-            caps.append(np.full(len(e), g[k] ** 2 * model.holding_force[k] / model.strip_width[k]))
+    pre, fo = model.preset, model.face_offsets
+    s_off = pre.young_clutch_off * pre.thick_clutch_off
+    for k in range(model.n_clutches):
+        if g[k] <= 0.0 or not np.isfinite(hold[k]):
+            continue
+        yc, tc = clutch_material(g[k], pre)
+        e = np.arange(fo[k + 1], fo[k + 2])
+        ids.append(e)
+        ks.append(np.full(len(e), max(yc * tc - s_off, 1e-12 * s_off)))
+        caps.append(np.full(len(e), hold[k] / model.strip_width[k]))
     if not ids:
         return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
     return np.concatenate(ids), np.concatenate(ks), np.concatenate(caps)

@@ -102,6 +102,17 @@ class SimModel:
         """Whether any clutch has a finite holding force."""
         return self.holding_force is not None and bool(np.isfinite(self.holding_force).any())
 
+    def holding(self, activation) -> np.ndarray:
+        """(K,) force each clutch holds at ``activation`` (K,) in [0, 1]: ``g^2 F_h`` N
+        (``sim.slip``: the force goes with the voltage squared); inf where it is locked."""
+        if self.holding_force is None:
+            return np.full(self.n_clutches, np.inf)
+        g = np.asarray(activation, dtype=np.float64).reshape(-1)
+        hold = self.holding_force.copy()
+        finite = np.isfinite(hold)
+        hold[finite] *= g[finite] ** 2
+        return hold
+
     @property
     def n_garment(self) -> int:
         return len(self.garment_rest)
