@@ -148,3 +148,33 @@ def test_force_over_the_motion_with_slipping_clutches(runs, capsys):
     assert hold <= c["tension_N"] < 1.2 * hold  # at its holding force (+ the guide and the hardening)
     assert doc["slips"] and doc["slips"][0]["clutch"] == "elbow_outer.R"
     assert "slips in arm_flexion.right from t =" in capsys.readouterr().out
+
+
+def test_a_design_on_another_body(runs, capsys):
+    """``evaluate --phenotype``: on the run's own phenotype the transferred garment and
+    clutches reproduce the run's evaluation; on a heavier body the same faces carry the
+    design; a phenotype out of range is one line, exit 2, before any work."""
+    cli, _, dr = runs
+    own = json.loads((cli / "final" / "evaluation.json").read_text())
+    same = cli / "same.json"
+    assert main(["-q", "evaluate", str(cli), "--no-loads", "--phenotype", "weight=0.5", "--json", str(same)]) == 0
+    doc = json.loads(same.read_text())
+    (t,) = doc["transfer"]
+    assert t["phenotype"]["weight"] == 0.5
+    for m, v in own["rho"].items():
+        for s in ("on", "off"):
+            assert t["rho"][m][s] == pytest.approx(v[s], rel=2e-3)
+    heavy = cli / "heavy.json"
+    assert main(["-q", "evaluate", str(cli), "--no-loads", "--phenotype", "weight=0.9,height=0.2",
+                 "--json", str(heavy)]) == 0
+    (t,) = json.loads(heavy.read_text())["transfer"]
+    assert t["phenotype"]["weight"] == 0.9 and t["phenotype"]["height"] == 0.2
+    m = dr.problem.motions[0]
+    assert math.isfinite(t["rho"][m]["on"]) and t["rho"][m]["on"] != pytest.approx(own["rho"][m]["on"], rel=1e-3)
+    assert "on another body (phenotype: weight 0.9, height 0.2" in capsys.readouterr().out
+    for bad, message in (("weight=2", "phenotype weight = 2.0 is outside [0, 1]"),
+                         ("waist=0.3", "unknown phenotype parameter 'waist'"),
+                         ("weight=heavy", "'heavy' is not a number")):
+        assert main(["-q", "evaluate", str(cli), "--phenotype", bad]) == 2
+        err = capsys.readouterr().err
+        assert message in err and err.count("\n") == 1

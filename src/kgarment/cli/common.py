@@ -114,6 +114,25 @@ def load(args):
     return override(p, **overrides(args))
 
 
+def parse_phenotype(text: str, base):
+    """'weight=0.8,height=0.3' -> ``base`` (a Phenotype) with those fields replaced; one-line
+    errors naming the field and what is allowed."""
+    import dataclasses
+
+    from kgarment.body import Phenotype
+
+    fields = dataclasses.asdict(base)
+    for item in filter(None, (x.strip() for x in text.split(","))):
+        key, sep, value = item.partition("=")
+        try:
+            fields[key.strip()] = float(value) if sep else None
+        except ValueError:
+            raise KgarmentError(f"--phenotype {item!r}: {value!r} is not a number in [0, 1]") from None
+        if not sep:
+            raise KgarmentError(f"--phenotype {item!r}: give FIELD=VALUE, e.g. weight=0.8")
+    return Phenotype.from_dict(fields)
+
+
 def parse_activation(text: str, n_clutches: int) -> tuple[float, ...]:
     """'on' (all 1), 'off' (all 0), or K comma-separated values in [0, 1] ('1,0,0.5')."""
     if text == "on":

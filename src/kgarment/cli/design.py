@@ -16,9 +16,11 @@ from kgarment.cli.common import (
     design_progress,
     expected_iterations,
     load,
+    parse_phenotype,
     print_evaluation,
     rho_line,
 )
+from kgarment.errors import KgarmentError
 
 DEMO_EXAMPLE = "shirt_three_motions"
 
@@ -109,6 +111,10 @@ def cmd_evaluate(args) -> int:
     src = parse_design_source(args.design, run_required=True)
     p = override(load_problem(src.run / "problem.toml"), motions=args.motion, clutch_model=args.clutch_model,
                  holding_force=args.holding_force)
+    if args.phenotype:  # checked before the work
+        if p.body.model != "anny":
+            raise KgarmentError("--phenotype needs a run on the Anny body (body model 'anny')")
+        phenotypes = [parse_phenotype(text, p.body.phenotype) for text in args.phenotype]
     hw = p.clutch_spec().hardware
     if args.clutch_model or args.holding_force:
         print("clutches: " + ("locked (never slip)" if hw.model == "locked" else "slip at their holding force"))
@@ -135,13 +141,40 @@ def cmd_evaluate(args) -> int:
         title = f"{src.run.name} iteration {k}: force over the motion" + (" (clutches slip)" if hw.model == "slip" else "")
         print(f"wrote {path_plot(path, stem.with_suffix('.png'), title)}"
               f" and {stem.with_suffix('.json')}")
+    others = [evaluate_on_phenotype(args, p, phen, body, garment, design) for phen in phenotypes] \
+        if args.phenotype else []
     if args.json:
         doc = {"run": str(src.run), "iteration": k, **res.to_json()}
         if path is not None:
             doc["path"] = path.to_json()
+        if others:
+            doc["transfer"] = others
         atomic_write_text(args.json, json.dumps(doc, indent=1))
         print(f"wrote {args.json}")
     return 0
+
+
+def evaluate_on_phenotype(args, p, phen, run_body, garment, design) -> dict:
+    """The design evaluated on the body with ``--phenotype`` (:mod:`kgarment.design.transfer`):
+    the same garment faces and clutch spots on the other body; printed, and returned for
+    the JSON (the phenotype and the evaluation)."""
+    import dataclasses
+
+    from kgarment.design import Evaluator
+    from kgarment.design.transfer import clutches_on, garment_on
+    from kgarment.problem import build_body, clutch_specs
+
+    other = dataclasses.replace(p, body=dataclasses.replace(p.body, phenotype=phen))
+    body = build_body(other)
+    g = garment_on(body, garment)
+    strips = clutches_on(clutch_specs(p, run_body), run_body, garment, g)
+    ev = Evaluator.from_problem(other, body=body, garment=g, strips=strips, device=args.device)
+    res = ev.evaluate(design, loads=not args.no_loads)
+    changed = ", ".join(f"{k} {v:g}" for k, v in dataclasses.asdict(phen).items()
+                        if v != getattr(p.body.phenotype, k)) or "the run's own"
+    print(f"on another body (phenotype: {changed}; the same garment faces and clutch spots):")
+    print_evaluation(res)
+    return {"phenotype": dataclasses.asdict(phen), **res.to_json()}
 
 
 def add_parsers(sub) -> None:
@@ -168,6 +201,10 @@ def add_parsers(sub) -> None:
     sp.add_argument("--path", type=FRAMES, metavar="K", help="also the force over the motion: K quasi-static frames "
                     "from rest to the target pose, ON and OFF (garment energy and every clutch's tension per "
                     "frame; plot and JSON written to RUN/path-ITERATION.png/.json; 10 is a good start)")
+    sp.add_argument("--phenotype", metavar="FIELD=V,...", action="append", help="also evaluate the design on "
+                    "another body (repeatable): Anny with these phenotype fields changed (gender, age, muscle, "
+                    "weight, height, proportions, each in [0, 1]), the garment cut from the same faces and the "
+                    "clutches at the same spots")
     add_clutch_model(sp)
     add_device(sp)
     sp.set_defaults(func=cmd_evaluate)
