@@ -1,9 +1,10 @@
 """The total energy of one state (design + motion + activation): value, gradient, Hessian.
 
 ``E(x) = E_membrane(garment) + E_membrane(clutches) + E_contact + E_attach + E_anchor
-+ E_tie`` on x (N, 3).  :class:`StateProblem` holds the per-state tensors (materials,
-penalty weights, body, springs) and the contact neighbour cache; it is the object the
-solvers minimise.
++ E_tie`` on x (N, 3); with slipping clutches (:mod:`kgarment.sim.slip`) an ON clutch's
+membrane is its OFF one plus an axial slider, counted in its elements' membrane energy.
+:class:`StateProblem` holds the per-state tensors (materials, penalty weights, body,
+springs, sliders) and the contact neighbour cache; it is the object the solvers minimise.
 """
 
 from __future__ import annotations
