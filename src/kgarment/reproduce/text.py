@@ -171,6 +171,8 @@ def performance_rows(doc: dict) -> list[str]:
                 "`--json`; `benchmarks/README.md` explains them): seconds (`_s`), milliseconds (`_ms`), "
                 "megabytes (`_mb`).", ""]
         for name, entries in data.items():
+            if not all(isinstance(v, dict) for v in entries.values()):
+                entries = {name: entries}  # one case, its figures flat (benchmarks/path.py)
             cols = sorted({k for val in entries.values() for k in val if not isinstance(val[k], dict)})
             if len(cols) > 8:  # many figures of few cases (subdivision 0, 1): one row per figure
                 head = ["", *entries]
