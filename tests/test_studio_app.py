@@ -340,3 +340,38 @@ def test_cli_refuses_a_remote_host_without_allow_remote(tmp_path):
                          capture_output=True, text=True, check=False)
     assert bad.returncode == 2 and "--allow-remote" in bad.stderr and "no authentication" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1, bad.stderr
+
+
+def test_activation_sets_pick_what_a_motion_switches_on(studio):
+    """The Simulate tab's per-motion ON set ([motions.activation]): checked names, its own
+    evaluator, followed by clutch renames and deletions, undone like every edit, and used
+    by the simulation (a clutch left out of the set carries nothing in the ON state)."""
+    from kgarment.studio.simulations import SimInputs
+
+    st, sims, m = studio.state, studio.sims, "arm_flexion.right"
+    assert st.clutch_names() == ["elbow_outer.R", "elbow_inner.R"] and st.activation_set(m) == st.clutch_names()
+    first = sims.evaluator(SimInputs.of(st))
+    studio.panel._set_activation(m, " elbow_outer.R ")
+    assert st.problem.activation_of(m) == {"elbow_outer.R": 1.0}
+    assert studio.panel.set_fields[m].value == "elbow_outer.R" and "switches on: elbow_outer.R" in last(studio)[0]
+    ev = sims.evaluator(SimInputs.of(st))
+    assert ev is not first and list(ev.setup.on_activation(m)) == [1.0, 0.0]
+    with pytest.raises(KgarmentError, match="unknown clutch 'nope'; the clutches are: elbow_outer.R, elbow_inner.R"):
+        st.set_activation(m, ["nope"])
+    st.edit_clutch("elbow_outer.R", name="outer")
+    assert st.problem.activation_of(m) == {"outer": 1.0}
+    st.undo()
+    assert st.problem.activation_of(m) == {"elbow_outer.R": 1.0}
+    st.delete_clutch("elbow_outer.R")
+    assert st.problem.activation_of(m) is None  # left empty: every clutch again
+    st.undo()
+    paint(studio, faces=(100, 200, 300, 400, 500), radius=0.04)
+    job = sims.simulate("A")
+    assert job.wait(240) and job.status == "done", job.message
+    tension = {r["clutch"]: r["tension_N"] for r in sims.a.loads}
+    # an OFF clutch is plain cloth: (Y t)_off / (Y t)_on = 1.5% with the reference preset
+    assert abs(tension["elbow_inner.R"]) < 0.05 * abs(tension["elbow_outer.R"])
+    st.set_activation(m, st.clutch_names())  # every clutch: the default again, written nowhere
+    assert st.problem.activation == ()
+    studio.panel.refresh_status()
+    assert studio.panel.set_fields[m].value == ""

@@ -192,12 +192,20 @@ def test_place_paint_save_in_the_browser(studio, tmp_path):
             studio.guarded(studio.click_ray, (0.0, -5.0, 3.0), (0.0, 0.0, 1.0))
             assert st.revision == rev and "not on the garment" in studio.messages[-1][0]
 
+            # the motion's ON set, typed into the Simulate tab
+            page.get_by_role("tab", name="Simulate").click()
+            fill_text(page, "arm_flexion.right: ON set", "elbow_outer_R")
+            wait_for(lambda: st.problem.activation_of("arm_flexion.right") == {"elbow_outer_R": 1.0},
+                     what="the activation set")
+            page.screenshot(path=shots / "3_activation_set.png")
+            mark('set')
+
             # save from the File tab
             page.get_by_role("tab", name="File").click()
             page.get_by_role("button", name="Save session").click()
             wait_for(lambda: (tmp_path / "session" / "studio.toml").is_file(), what="the saved session")
             page.get_by_text("session saved to").first.wait_for(timeout=10000)
-            page.screenshot(path=shots / "3_saved.png")
+            page.screenshot(path=shots / "4_saved.png")
             mark('saved')
 
             # exports: a path that leaves the studio's folder is refused; a name lands in RUNS/exports
@@ -224,7 +232,9 @@ def test_place_paint_save_in_the_browser(studio, tmp_path):
     assert names == st.clutch_names() and "elbow_outer_R" in names and "clutch" in names
     design = load_design(str(folder / "design.npz"), len(faces)) > 0.5
     assert design[[200, 240]].all() and np.array_equal(design, st.design)
-    assert load_problem(folder / "problem.toml").garment.template == "arm_sleeve.right"
+    saved = load_problem(folder / "problem.toml")
+    assert saved.garment.template == "arm_sleeve.right"
+    assert saved.activation_of("arm_flexion.right") == {"elbow_outer_R": 1.0}  # the set typed in the page
     meta = tomllib.loads((folder / "studio.toml").read_text())
     assert meta["settings"]["tool"] == "paint reinforcement"
     print(f"\nstudio screenshots: {shots} (drag stroke painted: {dragged}); steps: {', '.join(times)}")

@@ -129,6 +129,7 @@ class Panel:
         sims = self.s.sims
         self.sim_folder = gui.add_folder("Motions to simulate")
         self.sim_boxes: dict = {}
+        self.set_fields: dict = {}  # per motion: the clutches it switches on ([motions.activation])
         self._button(gui, "Simulate design A", lambda: sims.simulate("A", self._sim_motions()))
         self._button(gui, "Simulate design B", lambda: sims.simulate("B", self._sim_motions()))
         self._button(gui, "Stop simulation", sims.stop)
@@ -186,6 +187,11 @@ class Panel:
         self.s.state.set_budget(float(value))
         self.refresh_status()
 
+    def _set_activation(self, motion: str, text: str) -> None:
+        self.s.state.set_activation(motion, [n.strip() for n in str(text).split(",") if n.strip()])
+        self.s.say(f"{motion} switches on: {', '.join(self.s.state.activation_set(motion)) or 'no clutch'}")
+        self.refresh_status()
+
     def _sim_motions(self) -> list[str]:
         chosen = [m for m, box in self.sim_boxes.items() if box.value]
         self.s.settings.sim_motions = chosen
@@ -199,10 +205,16 @@ class Panel:
         marks = sorted(k for k in (st.landmarks or {}) if not k.endswith((".left", ".right")))
         self.start_mark.options = marks or [NONE]
         self.towards_mark.options = marks or [NONE]
-        for box in self.sim_boxes.values():
+        for box in [*self.sim_boxes.values(), *self.set_fields.values()]:
             box.remove()
+        gui = self.s.server.gui
         with self.sim_folder:
-            self.sim_boxes = {m: self.s.server.gui.add_checkbox(m, m in s.sim_motions) for m in st.problem.motions}
+            self.sim_boxes, self.set_fields = {}, {}
+            for m in st.problem.motions:
+                self.sim_boxes[m] = gui.add_checkbox(m, m in s.sim_motions)
+                self.set_fields[m] = self._on(
+                    gui.add_text(f"{m}: ON set", "", hint="clutches this motion switches on, comma-separated "
+                                 "(empty: all)"), lambda v, m=m: self._set_activation(m, v))
         self.sync_settings()
         self.sync_clutch()
         self.show_results()
@@ -249,6 +261,10 @@ class Panel:
         where = f" (Save writes {self.s.session_dir})" if self.s.session_dir is not None else ""
         self.status.content = (f"**kgarment studio**: {st.base_garment.name}, {st.n_faces} faces, "
                                f"{len(st.clutches)} clutches; reinforced {cov:.1f}% / {budget:.0f}%; {saved}{where}")
+        for m, field in self.set_fields.items():  # the sets as the problem has them (after undo, renames)
+            text = ", ".join(st.activation_set(m)) if st.problem.activation_of(m) is not None else ""
+            if field.value != text:
+                field.value = text
 
     def show_message(self, text: str, error: bool) -> None:
         self.message.content = ("**Error:** " if error else "") + text

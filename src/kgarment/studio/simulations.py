@@ -62,8 +62,8 @@ class SimInputs:
     def key(self, device: str) -> tuple:
         """What the fully reinforced equilibria depend on (the budget does not count)."""
         p = self.problem
-        return (p.body, p.garment, p.motions, self.clutches, self.garment.attached.tobytes(), p.solver, p.materials,
-                p.design.objective, device)
+        return (p.body, p.garment, p.motions, p.activation, self.clutches, self.garment.attached.tobytes(), p.solver,
+                p.materials, p.design.objective, p.clutch_spec().hardware, device)
 
     def evaluator(self, device: str = "cpu") -> Evaluator:
         return Evaluator.from_problem(self.problem, body=self.body, garment=self.garment, strips=list(self.strips),

@@ -40,12 +40,14 @@ LAYERS = ("design", "attached")
 @dataclass(frozen=True)
 class Snapshot:
     """The editable layers at one moment (for undo): design, attached (m,) bool;
-    clutches; target_area (the budget, share of the garment's area)."""
+    clutches; target_area (the budget, share of the garment's area); activation (the
+    problem's per-motion activation sets)."""
 
     design: np.ndarray
     attached: np.ndarray
     clutches: tuple[ClutchSpec, ...]
     target_area: float
+    activation: tuple = ()
 
 
 class StudioState:
@@ -126,7 +128,8 @@ class StudioState:
 
     # ----- undo -------------------------------------------------------------------------
     def snapshot(self) -> Snapshot:
-        return Snapshot(self.design.copy(), self.attached.copy(), tuple(self.clutches), self.budget)
+        return Snapshot(self.design.copy(), self.attached.copy(), tuple(self.clutches), self.budget,
+                        self.problem.activation)
 
     def _record(self) -> None:
         self._undo.append(self.snapshot())
@@ -144,6 +147,7 @@ class StudioState:
             s = self._undo.pop()
             self.design, self.attached, self.clutches = s.design, s.attached, list(s.clutches)
             self._set_budget(s.target_area)
+            self.problem = dataclasses.replace(self.problem, activation=s.activation)
             self._changed()
             return True
 
@@ -198,6 +202,42 @@ class StudioState:
         beso = dataclasses.replace(d.beso, target_area=float(value))
         self.problem = dataclasses.replace(self.problem, design=dataclasses.replace(d, beso=beso))
 
+    def activation_set(self, motion: str) -> list[str]:
+        """The clutches ``motion`` switches on (all of them unless the problem says otherwise)."""
+        given = self.problem.activation_of(motion)
+        return list(self.clutch_names()) if given is None else [n for n in given if n in self.clutch_names()]
+
+    def set_activation(self, motion: str, clutches) -> None:
+        """The clutches ``motion`` switches on ([motions.activation]; every clutch, or an
+        empty list, for all of them): names of this garment's clutches."""
+        if motion not in self.problem.motions:
+            raise KgarmentError(f"{motion!r} is not a motion of this problem; allowed: {', '.join(self.problem.motions)}")
+        names = list(dict.fromkeys(clutches))
+        unknown = [n for n in names if n not in self.clutch_names()]
+        if unknown:
+            raise KgarmentError(f"{motion} switches on unknown clutch {unknown[0]!r}; the clutches are: "
+                                f"{', '.join(self.clutch_names()) or 'none'}")
+        with self.lock:
+            if set(names) in (set(), set(self.clutch_names())):
+                names = []  # every clutch: the default, written nowhere
+            old = self.problem.activation
+            new = tuple((m, v) for m, v in old if m != motion) + \
+                (((motion, tuple((n, 1.0) for n in names)),) if names else ())
+            if dict(new) != dict(old):
+                self._record()
+                self.problem = dataclasses.replace(self.problem, activation=new)
+                self._changed()
+
+    def _rename_in_sets(self, old: str, new: str | None) -> None:
+        """Clutch ``old`` renamed to ``new`` (None: deleted) in every activation set; a set
+        left empty means every clutch again."""
+        sets = []
+        for m, v in self.problem.activation:
+            v = tuple((new, a) if n == old else (n, a) for n, a in v if n != old or new is not None)
+            if v:
+                sets.append((m, v))
+        self.problem = dataclasses.replace(self.problem, activation=tuple(sets))
+
     # ----- clutches ---------------------------------------------------------------------
     def add_clutch(self, spec: ClutchSpec) -> ClutchStrip:
         """Add a clutch (its name must be new and it must fit on the garment)."""
@@ -220,6 +260,8 @@ class StudioState:
             if spec != old:
                 self._record()
                 self.clutches[self.clutches.index(old)] = spec
+                if spec.name != name:
+                    self._rename_in_sets(name, spec.name)
                 self._changed()
             return strip
 
@@ -249,6 +291,7 @@ class StudioState:
             spec = self.clutch(name)
             self._record()
             self.clutches.remove(spec)
+            self._rename_in_sets(name, None)
             self._changed()
 
     def new_clutch_name(self, base: str = "clutch") -> str:
