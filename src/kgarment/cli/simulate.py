@@ -9,12 +9,12 @@ from kgarment.errors import KgarmentError
 def cmd_simulate(args) -> int:
     import numpy as np
 
-    from kgarment.constants import SLIPPING
     from kgarment.design import Evaluator, load_design
     from kgarment.design.report import write_equilibrium
     from kgarment.io import check_output_folder
     from kgarment.problem import build_body, build_clutches, build_garment
     from kgarment.sim import clutch_tensions
+    from kgarment.sim.slip import slides
 
     p = load(args)
     if not args.quiet:
@@ -44,7 +44,7 @@ def cmd_simulate(args) -> int:
         if ev.setup.n_clutches:
             tension = clutch_tensions(ev.setup.model, design, state, r.x)
             print("  clutch tension: " + ", ".join(
-                f"{c.name} {t:.1f} N" + (f" (holds {h:.0f} N{', slips' if h > 0 and t >= SLIPPING * h else ''})"
+                f"{c.name} {t:.1f} N" + (f" (holds {h:.0f} N{', slips' if slides(t, h) else ''})"
                                          if np.isfinite(h) else "")
                 for c, t, h in zip(ev.setup.model.clutches, tension, hold)))
         print(f"  wrote {files[0]} and {files[-1]}")

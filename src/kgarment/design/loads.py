@@ -40,8 +40,9 @@ from pathlib import Path
 
 import numpy as np
 
-from kgarment.constants import LOAD_TOL, LOADED_SHARE, MIN_GAIN, SLIPPING
+from kgarment.constants import LOAD_TOL, LOADED_SHARE, MIN_GAIN
 from kgarment.sim import StateResult, clutch_tensions, solve_states
+from kgarment.sim.slip import slides
 
 
 @dataclass(frozen=True)
@@ -194,7 +195,7 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
             h = float(hold[k]) if math.isfinite(hold[k]) else None
             loads.append(ClutchLoad(m, name, float(share), float(tension[k]),
                                     bool(math.isfinite(share) and share >= LOADED_SHARE), h,
-                                    bool(h is not None and h > 0 and tension[k] >= SLIPPING * h)))
+                                    slides(tension[k], hold[k])))
     return LoadReport(tuple(loads), tuple(garment))
 
 

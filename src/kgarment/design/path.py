@@ -32,10 +32,10 @@ from pathlib import Path
 import numpy as np
 
 from kgarment.body.motions import Motion as BodyMotion
-from kgarment.constants import SLIPPING
 from kgarment.design.evaluate import MULTISTABLE
 from kgarment.errors import KgarmentError
 from kgarment.sim import SimState, clutch_tensions, garment_motions, solve_states
+from kgarment.sim.slip import slides
 
 log = logging.getLogger(__name__)
 PATH_FRAMES = 10   # frames from rest to the target pose (``--path`` default)
@@ -76,12 +76,11 @@ class PathReport:
     def slips(self) -> list[dict]:
         """Per motion and clutch that reaches its holding force ON: the first frame's
         progress ``t`` where it slides (tension at :data:`kgarment.constants.SLIPPING` of
-        the holding force or more) and the holding force (N)."""
+        the holding force or more, :func:`kgarment.sim.slip.slides`) and the holding force (N)."""
         out = []
         for m, hold in self.holding_N:
             for k, c in enumerate(self.clutches):
-                t = next((f.t for f in self.curve(m, "on") if hold[k] > 0 and f.tension_N[k] >= SLIPPING * hold[k]),
-                         None)
+                t = next((f.t for f in self.curve(m, "on") if slides(f.tension_N[k], hold[k])), None)
                 if t is not None:
                     out.append({"motion": m, "clutch": c, "from_t": t, "holding_N": hold[k]})
         return out

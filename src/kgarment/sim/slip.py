@@ -44,10 +44,13 @@ electrostatic formula ``tau = mu eps0 eps_r V^2 / (2 d^2)`` (:func:`electrostati
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import torch
+
+from kgarment.constants import SLIPPING
 
 EPS0 = 8.8541878128e-12  # vacuum permittivity, F/m
 
@@ -57,6 +60,12 @@ def electrostatic_stress(voltage: float, thickness: float, permittivity: float, 
     ``voltage`` V, dielectric ``thickness`` d (m), relative ``permittivity`` eps_r, friction
     coefficient mu between the strips."""
     return friction * EPS0 * permittivity * voltage**2 / (2.0 * thickness**2)
+
+
+def slides(tension: float, holding: float) -> bool:
+    """Whether a clutch carrying ``tension`` (N) slides at its ``holding`` force (N): at
+    :data:`kgarment.constants.SLIPPING` of it or more; never when locked (inf) or off (0)."""
+    return bool(0.0 < holding < math.inf and tension >= SLIPPING * holding)
 
 
 def axial_coefficients(rest: np.ndarray, tri: np.ndarray, shape_grad: np.ndarray,
