@@ -44,19 +44,15 @@ def garment_on(body: Body, garment: Garment) -> Garment:
     return dataclasses.replace(out, attached=garment.attached.copy())  # the same attachment rings
 
 
-def clutch_on_mesh(spec: ClutchSpec, rest_vertices: np.ndarray, faces: np.ndarray,
-                   landmarks=None) -> ClutchSpec:
+def clutch_on_mesh(spec: ClutchSpec, topology: MeshTopology, landmarks=None) -> ClutchSpec:
     """``spec`` given on the mesh (start face + barycentric point, barycentric start
-    direction), valid on every garment with these ``faces`` (m, 3); ``rest_vertices``
-    (n, 3) is the garment it was placed on (``landmarks`` resolve landmark names there).
-    On that garment it builds the same strip: the straight walk is sensitive to its start
-    direction where it passes near a vertex, so the direction is the spec's own, not one
-    estimated from the strip."""
-    st = resolve_start(spec, rest_vertices, faces, landmarks=landmarks)
-    P = rest_vertices[faces[st.face]]
-    E = np.stack([P[1] - P[0], P[2] - P[0]], axis=1)  # (3, 2)
-    uv, *_ = np.linalg.lstsq(E, st.direction, rcond=None)
-    direction = (-float(uv[0] + uv[1]), float(uv[0]), float(uv[1]))
+    direction), valid on every garment with the faces of ``topology``, the rest garment it
+    was placed on (``landmarks`` resolve landmark names there).  On that garment it builds
+    the same strip: the straight walk is sensitive to its start direction where it passes
+    near a vertex, so the direction is the spec's own, not one estimated from the strip."""
+    st = resolve_start(spec, topology.V, topology.F, topology, landmarks)
+    d = topology.grad[st.face] @ st.direction  # the barycentric coordinates' change along it
+    direction = (-float(d[1] + d[2]), float(d[1]), float(d[2]))
     return dataclasses.replace(spec, start=SurfacePoint(st.face, tuple(float(b) for b in st.bary)),
                                direction=BaryDirection(direction))
 
@@ -65,6 +61,7 @@ def clutches_on(specs, body_from: Body, garment_from: Garment, garment_to: Garme
     """The clutches ``specs`` (placed on ``garment_from``, on ``body_from``) at the same
     spots of ``garment_to`` (same faces), each walked out again on its rest surface."""
     marks = body_landmarks(body_from) if body_from.rigged else None
+    source = MeshTopology(garment_from.rest_vertices, garment_from.faces)
     topo = MeshTopology(garment_to.rest_vertices, garment_to.faces)
-    return [build_clutch(clutch_on_mesh(s, garment_from.rest_vertices, garment_from.faces, marks),
-                         garment_to.rest_vertices, garment_to.faces, topology=topo) for s in specs]
+    return [build_clutch(clutch_on_mesh(s, source, marks), garment_to.rest_vertices, garment_to.faces,
+                         topology=topo) for s in specs]

@@ -262,9 +262,7 @@ class Problem:
         c = self.clutch_spec()
         parts = ([f"layout {c.layout} ({c.side})"] if c.layout else []) + ([f"file {c.file}"] if c.file else []) \
             + ([f"{len(c.inline)} inline"] if c.inline else [])
-        hw = c.hardware.to_dict()
-        lines.append(f"clutches: {'; '.join(parts) or 'none'}"
-                     + (f"; {', '.join(f'{k} {v}' for k, v in hw.items())}" if hw else ""))
+        lines.append(f"clutches: {'; '.join(parts) or 'none'}" + (f"; {c.hardware}" if c.hardware.to_dict() else ""))
         lines.append("design: " + ", ".join(f"{k} {v}" for k, v in self.design.flat().items()))
         lines.append("solver: " + ", ".join(f"{k} {v}" for k, v in asdict(self.solver).items()))
         lines.append(f"materials: preset {self.materials.preset}")

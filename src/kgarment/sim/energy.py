@@ -62,26 +62,21 @@ def state_materials(model: SimModel, design: np.ndarray, activation) -> StateMat
     return StateMaterials(np.concatenate(ys), np.concatenate(ts))
 
 
-def slider_arrays(model: SimModel, activation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def slider_arrays(model: SimModel, mats: StateMaterials, activation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The slipping clutch elements of a state (``sim.slip``): element ids (q,), slider
-    stiffness ``k`` (q,) N/m and holding force per unit width ``cap`` (q,) N/m -- the
+    stiffness ``k`` (q,) N/m -- what the activation adds to the OFF membrane, from the
+    state's materials ``mats`` -- and holding force per unit width ``cap`` (q,) N/m; the
     elements of every clutch with a finite holding force and activation g > 0."""
     g = np.asarray(activation, dtype=np.float64).reshape(-1)
     hold = model.holding(g)
-    ids, ks, caps = [], [], []
-    pre, fo = model.preset, model.face_offsets
-    s_off = pre.young_clutch_off * pre.thick_clutch_off
-    for k in range(model.n_clutches):
-        if g[k] <= 0.0 or not np.isfinite(hold[k]):
-            continue
-        yc, tc = clutch_material(g[k], pre)
-        e = np.arange(fo[k + 1], fo[k + 2])
-        ids.append(e)
-        ks.append(np.full(len(e), max(yc * tc - s_off, 1e-12 * s_off)))
-        caps.append(np.full(len(e), hold[k] / model.strip_width[k]))
-    if not ids:
+    fo = model.face_offsets
+    on = [k for k in range(model.n_clutches) if g[k] > 0.0 and np.isfinite(hold[k])]
+    if not on:
         return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
-    return np.concatenate(ids), np.concatenate(ks), np.concatenate(caps)
+    ids = np.concatenate([np.arange(fo[k + 1], fo[k + 2]) for k in on])
+    s_off = model.preset.young_clutch_off * model.preset.thick_clutch_off
+    caps = np.concatenate([np.full(fo[k + 2] - fo[k + 1], hold[k] / model.strip_width[k]) for k in on])
+    return ids, np.maximum(mats.stiffness[ids] - s_off, 1e-12 * s_off), caps
 
 
 def vertex_stiffness(model: SimModel, mats: StateMaterials) -> np.ndarray:
@@ -140,7 +135,7 @@ class StateProblem:
         # a slipping clutch element is the clutch's OFF membrane plus an axial slider (sim.slip);
         # its penalties keep the ON stiffness (mats), which the anchors must hold
         young, thick = self.mats.young.copy(), self.mats.thick.copy()
-        sid, sk, scap = slider_arrays(model, state.activation)
+        sid, sk, scap = slider_arrays(model, self.mats, state.activation)
         young[sid], thick[sid] = model.preset.young_clutch_off, model.preset.thick_clutch_off
         self.sliders = None if len(sid) == 0 else SliderSet(
             element=T(sid, torch.long), tri=T(el.tri[sid], torch.long),
