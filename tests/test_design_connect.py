@@ -140,3 +140,22 @@ def test_any_proposal_comes_out_in_one_part_holding_every_clutch_at_the_target_a
         assert all(a and b for a, b in clutch_end_support(out, ends))
         assert islands(f, out, links=ends, adjacency=adj) == 1
         assert abs(areas[out].sum() / areas.sum() - target) < 4 * areas.max() / areas.sum()
+
+
+def test_kept_faces_stay_joined_to_the_structure():
+    """Faces the step guard keeps are neither dropped as islands nor trimmed, though they
+    rank low: the loose patch of the cut-link proposal, kept, is joined to the rest."""
+    v, f, c, areas, held = strip()
+    ends = [ends_at(c, -0.04, 0.04)]
+    band = np.abs(c[:, 1]) < 0.02
+    left = band & (c[:, 0] < -0.03)
+    right = band & (c[:, 0] > 0.03) & (c[:, 0] < 0.125)
+    loose = (np.abs(c[:, 0]) < 0.02) & (c[:, 1] > 0.035)
+    proposal = left | right | loose
+    alpha = np.where(left | right, 1.0, 0.05) - 0.01 * np.abs(c[:, 1])
+    target = areas[proposal].sum() / areas.sum()
+    adj = face_adjacency(f)
+    out = connect_design(proposal, alpha, areas, target, adj, ends, held, keep=loose)
+    assert out[loose].all()
+    assert islands(f, out, links=ends, adjacency=adj) == 1
+    assert abs(areas[out].sum() / areas.sum() - target) < 0.01

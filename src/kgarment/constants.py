@@ -31,6 +31,13 @@ FILTER_RADIUS = 0.02   # metres, the "radius" filter's reach
 CONVERGENCE_TOL = 1e-3  # relative change of the objective over `window` iterations
 WINDOW = 5
 MAX_ITERATIONS = 200
+# The step guard (kgarment.design.guard, [design] guard): a motion's objective term below this
+# (J per J of the fully reinforced garment's ON energy) is no load path worth guarding; the
+# guard lets a step through after this many rejections in a row, and keeps the guarded faces'
+# area below this share of the target area.
+GUARD_FLOOR = 0.05
+GUARD_RETRIES = 3
+GUARD_AREA = 0.25
 # "target reached": |area - A*| <= TARGET_MARGIN + er * A* (one BESO step plus the
 # granularity of whole faces)
 TARGET_MARGIN = 0.005
@@ -39,7 +46,7 @@ TARGET_MARGIN = 0.005
 DESIGN_RANGES = {"target_area": (0.01, 1.0), "er": (1e-4, 0.5), "ar_max": (1e-4, 1.0), "radius": (1e-4, 1.0),
                  "tol": (1e-12, 1.0), "window": (1, 100), "max_iterations": (1, 100000),
                  "protect_clutch_margin": (0.0, 0.2), "lockout": (0.0, 10.0),
-                 "balance": (0.0, 10.0)}
+                 "balance": (0.0, 10.0), "guard": (0.0, 0.95)}
 SOLVER_RANGES = {"tol": (1e-14, 1.0), "evolution_tol": (1e-14, 1.0), "max_iter": (1, 100000), "workers": (0, 256)}
 SUBDIVISIONS = (0, 1, 2, 3)
 ROTATION_DEGREES = (-180.0, 180.0)  # a motion's rotation of one bone, degrees

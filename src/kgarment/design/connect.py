@@ -177,13 +177,15 @@ def _trim(graph: sp.csr_matrix, solid: np.ndarray, root: int, protected: np.ndar
 
 def connect_design(solid: np.ndarray, alpha: np.ndarray, areas: np.ndarray, target: float,
                    adjacency: sp.csr_matrix, ends, attached: np.ndarray | None = None,
-                   loop_faces=()) -> np.ndarray:
+                   loop_faces=(), keep: np.ndarray | None = None) -> np.ndarray:
     """BESO's proposal ``solid`` (m,) bool repaired into one part in which every clutch is
     held at both ends (module docstring).  alpha : (m,) filtered sensitivities (higher =
     more useful); areas : (m,) m^2; target : the reinforced area share to meet; adjacency :
     (m, m) face adjacency; ends : [(faces under end A, under end B)] per clutch; attached :
     (a,) attachment faces; loop_faces : per boundary loop, the faces touching it
-    (:func:`anchored`).  Returns (m,) bool."""
+    (:func:`anchored`);  keep : (m,) bool faces of ``solid`` that stay, joined to the rest
+    like the clutch ends' paths (the step guard's, :mod:`kgarment.design.guard`), or None.
+    Returns (m,) bool."""
     solid = np.asarray(solid, bool).copy()
     if not len(ends) or not solid.any():
         return solid
@@ -198,6 +200,8 @@ def connect_design(solid: np.ndarray, alpha: np.ndarray, areas: np.ndarray, targ
     for k, (a, b) in enumerate(ends):
         others = [e for j, e in enumerate(ends) if j != k]
         protected |= _paths(link_graph(adjacency, others), cost, sources, np.r_[a, b])
+    if keep is not None:
+        protected |= keep & solid
     graph = link_graph(adjacency, ends)
     solid |= protected
     added = _join(graph, cost, areas, solid, root, protected)

@@ -12,7 +12,9 @@ One iteration (:func:`iterate`) is four steps, each a function of the frozen
 3. :func:`metrics_row`: the iteration's metrics (area, objective, rho per state, islands,
    clutch ends, the tension each clutch carries in each ON state, solver effort);
 4. :func:`advance`: the next state (a new design towards the next target area, repaired
-   into one part holding every clutch end unless ``connected`` is off, or done).
+   into one part holding every clutch end unless ``connected`` is off, or done); with
+   ``[design] guard``, a step that broke a motion's load path is taken back
+   (:mod:`kgarment.design.guard`).
 
 An iteration in which a state did not converge records its metrics (flagged in
 ``unconverged_states``) but updates the design with the previous iteration's filtered
@@ -35,8 +37,9 @@ import numpy as np
 from kgarment.design.beso import converged, design_values, next_target, update_design
 from kgarment.design.connect import connect_design
 from kgarment.design.evaluate import pick_equilibrium
+from kgarment.design.guard import REJECTED, TERM, boosted, guard_step, last_accepted, terms_of
 from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
-from kgarment.design.objective import combine_sensitivities, objective_value
+from kgarment.design.objective import combine_sensitivities, motion_sensitivities, objective_terms
 from kgarment.design.setup import DesignSetup, StateKey
 from kgarment.sim import (
     SimState,
@@ -74,7 +77,10 @@ class LoopState:
     iteration, NaN where it does not count towards convergence;  reference : {StateKey:
     energy J of the fully reinforced garment (iteration 0)};  reference_stored : {StateKey:
     Stored};  designs : per finished iteration its (m,) bool design;  metrics : per finished
-    iteration its metrics row;  done : converged or out of iterations.
+    iteration its metrics row;  done : converged or out of iterations;  guarded : (m,) bool
+    faces kept by the step guard (:mod:`kgarment.design.guard`), or None;  accepted_alpha :
+    {motion: (m,) its sensitivities at the last accepted iteration} (the guard's; None
+    without it).
     """
 
     iteration: int
@@ -88,6 +94,8 @@ class LoopState:
     designs: tuple[np.ndarray, ...]
     metrics: tuple[dict, ...]
     done: bool = False
+    guarded: np.ndarray | None = None
+    accepted_alpha: dict[str, np.ndarray] | None = None
 
 
 @dataclass(frozen=True)
@@ -169,8 +177,9 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
     """Step 3: the metrics of this iteration (``seconds`` is filled in by :func:`iterate`)."""
     areas, design = setup.areas, st.design
     frac = float(areas[design > 0.5].sum() / areas.sum())
-    obj = objective_value(setup.objective, solved.energy, reference, list(setup.motions), setup.lockout,
-                          setup.balance)
+    terms = objective_terms(setup.objective, solved.energy, reference, list(setup.motions), setup.lockout,
+                            setup.balance)
+    obj = float(sum(terms.values()))
     ends = clutch_end_support(design, setup.end_faces)
     faces = setup.model.garment_faces
     row = {
@@ -182,6 +191,7 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
         "newton_iterations": int(sum(r.convergence.iterations for r in solved.results)),
         "solver_tol": solved.options.tol,
     }
+    row.update({TERM.format(m): v for m, v in terms.items()})
     row.update({f"rho[{k[0]}:{k[1]}]": relative_energy_density(design, areas, solved.stored[k], reference_stored[k],
                                                                setup.clutch_area) for k in solved.stored})
     row.update({f"energy[{k[0]}:{k[1]}]": v for k, v in solved.energy.items()})
@@ -204,24 +214,43 @@ def tension_columns(setup: DesignSetup, design: np.ndarray, solved: Solved) -> d
 def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray, row: dict,
             reference: dict[StateKey, float], reference_stored: dict[StateKey, Stored]) -> LoopState:
     """Step 4: the next state: this iteration recorded; converged (or out of iterations), or
-    the design updated towards the next target area."""
+    the design updated towards the next target area -- or, when the step guard rejects this
+    iteration's step, made again from the last accepted iteration (``row["rejected"]``
+    names the motions whose load path it broke)."""
     p = setup.params
-    counts = not (solved.unconverged or solved.coarse)  # NaN: no convergence judged on it
+    rejected, guarded, base, accepted = [], st.guarded, st.design, st.accepted_alpha
+    a = last_accepted(st.metrics)
+    if setup.guard > 0 and a is not None and not solved.unconverged:
+        removed = st.designs[a] & ~(st.design > 0.5)
+        rejected, guarded = guard_step(st.metrics, terms_of(row), setup.guard, removed, st.guarded, setup.areas,
+                                       st.target, st.accepted_alpha)
+    if setup.guard > 0 and not rejected and not solved.unconverged:
+        accepted = motion_sensitivities(setup.objective, solved.alpha, list(setup.motions), setup.lockout,
+                                        setup.balance, solved.energy)
+    row[REJECTED] = ",".join(rejected)
+    counts = not (solved.unconverged or solved.coarse or rejected)  # NaN: no convergence judged on it
     objectives = st.objectives + (row["objective"] if counts else float("nan"),)
     done = converged(list(objectives), p.reached(row["area"]), p) or st.iteration + 1 >= p.max_iterations
-    target, design = st.target, st.design
+    target, design, alpha = st.target, st.design, filt
+    if rejected:
+        log.info("iteration %d: the step broke the load path of %s; made again from iteration %d", st.iteration,
+                 ", ".join(rejected), a)
+        base, alpha = design_values(st.designs[a]), st.alpha_prev
     if not done:
-        target = next_target(st.target, p)
-        design = update_design(st.design, filt, setup.areas, target, p)
+        if not rejected:
+            target = next_target(st.target, p)
+        rank = boosted(alpha, guarded)
+        design = update_design(base, rank, setup.areas, target, p)
         if p.connected and setup.ends:
-            design = design_values(connect_design(design > 0.5, filt, setup.areas, target, setup.adjacency,
-                                                  setup.end_faces, setup.attached, setup.loop_faces))
+            design = design_values(connect_design(design > 0.5, alpha, setup.areas, target, setup.adjacency,
+                                                  setup.end_faces, setup.attached, setup.loop_faces, guarded))
         if setup.protected is not None:
             design[setup.protected] = 1.0
-    warm = {s.name: r.x if r.converged or r.convergence.residual <= WARM_MAX_RESIDUAL or s.name not in st.warm
-            else st.warm[s.name] for s, r in zip(solved.states, solved.results)}
-    return LoopState(st.iteration + 1, design, target, filt, warm, objectives, reference, reference_stored,
-                     st.designs + (st.design > 0.5,), st.metrics + (row,), done)
+    warm = st.warm if rejected else {
+        s.name: r.x if r.converged or r.convergence.residual <= WARM_MAX_RESIDUAL or s.name not in st.warm
+        else st.warm[s.name] for s, r in zip(solved.states, solved.results)}
+    return LoopState(st.iteration + 1, design, target, alpha, warm, objectives, reference, reference_stored,
+                     st.designs + (st.design > 0.5,), st.metrics + (row,), done, guarded, accepted)
 
 
 def iterate(setup: DesignSetup, st: LoopState) -> LoopState:

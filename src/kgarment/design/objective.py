@@ -73,13 +73,13 @@ def _balance_value(energy: dict[tuple[str, str], float], motion: str) -> float:
     return total
 
 
-def combine_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], motions,
-                          lockout: float = 0.0, balance: float = 0.0,
-                          energy: dict[tuple[str, str], float] | None = None) -> np.ndarray:
-    """(m,) combined sensitivity from per-(motion, state) sensitivities, each (m,);
-    ``lockout`` weighs the ``lock:`` states, ``balance`` the ``solo:`` states (both the
-    active objective; the balance needs the states' ``energy``, J)."""
-    total = 0.0
+def motion_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], motions,
+                         lockout: float = 0.0, balance: float = 0.0,
+                         energy: dict[tuple[str, str], float] | None = None) -> dict[str, np.ndarray]:
+    """{motion: (m,) its normalised sensitivity} from per-(motion, state) sensitivities,
+    each (m,); ``lockout`` weighs the ``lock:`` states, ``balance`` the ``solo:`` states
+    (both the active objective; the balance needs the states' ``energy``, J)."""
+    out = {}
     for motion in motions:
         if kind == "active":
             on, off = alpha[(motion, "on")], alpha[(motion, "off")]
@@ -92,21 +92,31 @@ def combine_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], m
                 for key, w in balance_weights(energy, motion).items():
                     g = alpha[key] - off
                     gain = gain + balance * w * g * (on.max() / max(np.abs(g).max(), 1e-300))
-            total = total + gain / max(on.max(), 1e-300)
+            out[motion] = gain / max(on.max(), 1e-300)
         else:
             state = states_needed(kind)[0]
             a = alpha[(motion, state)]
-            total = total + a / max(a.max(), 1e-300)
+            out[motion] = a / max(a.max(), 1e-300)
+    return out
+
+
+def combine_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], motions,
+                          lockout: float = 0.0, balance: float = 0.0,
+                          energy: dict[tuple[str, str], float] | None = None) -> np.ndarray:
+    """(m,) combined sensitivity: the sum over motions of :func:`motion_sensitivities`."""
+    total = 0.0
+    for v in motion_sensitivities(kind, alpha, motions, lockout, balance, energy).values():
+        total = total + v
     return np.asarray(total)
 
 
-def objective_value(kind: str, energy: dict[tuple[str, str], float], reference: dict[tuple[str, str], float],
-                    motions, lockout: float = 0.0, balance: float = 0.0) -> float:
-    """Scalar objective for convergence tracking: per motion, the (ON - OFF) energy (less
-    ``lockout`` times each ``lock:`` state's energy beyond OFF, plus ``balance`` times the
-    balance term sum_c h(G_c)), or the energy, divided by the fully reinforced design's
-    energy in the first state, summed."""
-    total = 0.0
+def objective_terms(kind: str, energy: dict[tuple[str, str], float], reference: dict[tuple[str, str], float],
+                    motions, lockout: float = 0.0, balance: float = 0.0) -> dict[str, float]:
+    """{motion: its term of the objective}: the (ON - OFF) energy (less ``lockout`` times
+    each ``lock:`` state's energy beyond OFF, plus ``balance`` times the balance term
+    sum_c h(G_c)), or the energy, divided by the fully reinforced design's energy in the
+    motion's first state."""
+    out = {}
     for motion in motions:
         if kind == "active":
             off = energy[(motion, "off")]
@@ -115,8 +125,14 @@ def objective_value(kind: str, energy: dict[tuple[str, str], float], reference: 
                 gain -= lockout * (lock - off)
             if balance > 0:
                 gain += balance * _balance_value(energy, motion)
-            total += gain / reference[(motion, "on")]
+            out[motion] = gain / reference[(motion, "on")]
         else:
             s = states_needed(kind)[0]
-            total += energy[(motion, s)] / reference[(motion, s)]
-    return float(total)
+            out[motion] = energy[(motion, s)] / reference[(motion, s)]
+    return out
+
+
+def objective_value(kind: str, energy: dict[tuple[str, str], float], reference: dict[tuple[str, str], float],
+                    motions, lockout: float = 0.0, balance: float = 0.0) -> float:
+    """Scalar objective for convergence tracking: the sum of :func:`objective_terms`."""
+    return float(sum(objective_terms(kind, energy, reference, motions, lockout, balance).values()))

@@ -88,7 +88,9 @@ def transfer(coarse_setup: DesignSetup, coarse: LoopState, fine_setup: DesignSet
     design = design_values(np.asarray(coarse.design)[parent] > 0.5)
     if fine_setup.protected is not None:
         design[fine_setup.protected] = 1.0
-    return dataclasses.replace(fine, design=design, target=coarse.target, alpha_prev=alpha, warm=warm)
+    guarded = None if coarse.guarded is None else np.asarray(coarse.guarded)[parent]
+    return dataclasses.replace(fine, design=design, target=coarse.target, alpha_prev=alpha, warm=warm,
+                               guarded=guarded)
 
 
 def run_coarse(run: Path, problem: Problem, open_level: Callable, progress: Callable | None = None,

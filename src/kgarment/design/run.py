@@ -101,8 +101,10 @@ def best_iteration(rows, target: float, er: float) -> int:
     """The iteration a run reports as its design: the highest objective among the iterations
     at the target area whose states all converged; the last one if none.  BESO's objective
     is not monotone once the target is reached (where a state has several equilibria the
-    design can flip between them), and the paper samples designs along a run likewise."""
-    ok = [r for r in rows if target_reached(r["area"], target, er) and not r["unconverged_states"]]
+    design can flip between them), and the paper samples designs along a run likewise.  A
+    step the guard took back (:mod:`kgarment.design.guard`) is never reported."""
+    ok = [r for r in rows if target_reached(r["area"], target, er) and not r["unconverged_states"]
+          and not r.get("rejected")]
     return int(max(ok, key=lambda r: r["objective"])["iteration"]) if ok else int(rows[-1]["iteration"])
 
 
@@ -162,6 +164,11 @@ def save_checkpoint(run: Path, st: LoopState) -> None:
         n_faces=np.array(len(st.design)),
         designs=np.array([np.packbits(d) for d in st.designs]) if st.designs else np.zeros((0, 0), np.uint8),
     )
+    if st.guarded is not None:  # the step guard's, only when used (earlier checkpoints have none)
+        arrays["guarded"] = st.guarded
+    for i, (m, a) in enumerate(sorted((st.accepted_alpha or {}).items())):
+        arrays[f"accepted_{i}"] = a
+        arrays[f"accepted_name_{i}"] = np.array(m)
     for i, n in enumerate(names):
         arrays[f"warm_{i}"] = st.warm[n]
     for i, k in enumerate(ref_keys):
@@ -199,6 +206,9 @@ def _state_from(z: dict) -> LoopState:
         reference_stored={k: Stored(z[f"ref_faces_{i}"].copy(), float(c))
                           for i, (k, c) in enumerate(zip(keys, z["ref_clutch"]))},
         designs=tuple(designs), metrics=tuple(json.loads(str(z["metrics"]))), done=bool(z["done"]),
+        guarded=z["guarded"].astype(bool) if "guarded" in z else None,
+        accepted_alpha={str(z[f"accepted_name_{i}"]): z[f"accepted_{i}"].copy()
+                        for i in range(len(z)) if f"accepted_{i}" in z} or None,
     )
 
 

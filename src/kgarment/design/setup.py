@@ -56,7 +56,8 @@ class DesignSetup:
     a motion not in it switches every clutch on);  lockout : weight of the penalty on what
     other motions' sets store in a motion (the active objective's ``lock:`` states);
     balance : weight of the reward for each clutch of a motion's set carrying load on its
-    own (the active objective's ``solo:`` states).
+    own (the active objective's ``solo:`` states);  guard : the step guard's share
+    (:mod:`kgarment.design.guard`; 0: off).
     """
 
     model: SimModel
@@ -77,13 +78,14 @@ class DesignSetup:
     activation: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     lockout: float = 0.0
     balance: float = 0.0
+    guard: float = 0.0
 
     @classmethod
     def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
               solver: SolverOptions, evolution_solver: SolverOptions | None = None,
               protected: np.ndarray | None = None, skin_start: bool = False,
               activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0,
-              balance: float = 0.0) -> DesignSetup:
+              balance: float = 0.0, guard: float = 0.0) -> DesignSetup:
         """Precompute areas, filter, adjacency and clutch ends for ``model``."""
         X, F = model.garment_rest, model.garment_faces
         areas = triangle_areas(X, F)
@@ -104,7 +106,7 @@ class DesignSetup:
                    face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0,
                    attached.astype(np.int64), loops, skin_start,
                    {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout),
-                   float(balance))
+                   float(balance), float(guard))
 
     @property
     def n_clutches(self) -> int:
@@ -193,7 +195,7 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
                              skin_start=problem.solver.skin_start,
                              activation=activation_vectors(problem, [c.name for c in use]),
                              lockout=d.lockout if d.objective == "active" else 0.0,
-                             balance=d.balance if d.objective == "active" else 0.0)
+                             balance=d.balance if d.objective == "active" else 0.0, guard=d.guard)
 
 
 def activation_vectors(problem: Problem, names: list[str]) -> dict[str, np.ndarray]:

@@ -288,6 +288,7 @@ class _DesignOwn:
     protect_clutch_margin: float = 0.0
     lockout: float = 0.0
     balance: float = 0.0
+    guard: float = 0.0
 
 
 HARDWARE = ("model", "holding_stress", "voltage", "dielectric_thickness", "permittivity", "friction",

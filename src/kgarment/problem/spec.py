@@ -137,7 +137,8 @@ class DesignSpec:
     own (``solo:`` states; 0: none; :mod:`kgarment.design.objective`);
     levels : coarser subdivision levels to design at first, increasing, each below the
     garment's (coarse-to-fine, :mod:`kgarment.design.refine`); () designs at the garment's
-    level throughout.
+    level throughout;  guard : a BESO step after which some motion's objective term falls
+    by more than this share is taken back (0: off; :mod:`kgarment.design.guard`).
     """
 
     objective: str = "active"
@@ -147,6 +148,7 @@ class DesignSpec:
     lockout: float = 0.0
     balance: float = 0.0
     levels: tuple[int, ...] = ()
+    guard: float = 0.0
 
     def flat(self) -> dict:
         """The [design] table as written in a problem file (BESO fields flattened)."""
@@ -157,6 +159,8 @@ class DesignSpec:
             out["balance"] = self.balance
         if self.levels:
             out["levels"] = list(self.levels)
+        if self.guard:
+            out["guard"] = self.guard
         return out
 
 
