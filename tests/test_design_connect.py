@@ -30,6 +30,17 @@ def ends_at(c, x0, x1, y=0.0):
     return near(x0), near(x1)
 
 
+def cut_link(c):
+    """A clutch in the middle of the strip and a proposal around it: the band left of the
+    clutch, the band right of it stopping 2 cm short of the right edge, and a loose patch
+    beside the clutch -> (ends, left, right, loose), each (m,) bool but ends."""
+    band = np.abs(c[:, 1]) < 0.02
+    left = band & (c[:, 0] < -0.03)
+    right = band & (c[:, 0] > 0.03) & (c[:, 0] < 0.125)
+    loose = (np.abs(c[:, 0]) < 0.02) & (c[:, 1] > 0.035)
+    return [ends_at(c, -0.04, 0.04)], left, right, loose
+
+
 def test_a_proposal_that_holds_every_clutch_is_left_alone():
     v, f, c, areas, held = strip()
     ends = [ends_at(c, -0.04, 0.04)]
@@ -47,11 +58,7 @@ def test_a_cut_series_link_is_restored_and_islands_dropped():
     right edge (so the clutch is in series between the held edges), drops the loose patch
     and keeps the area."""
     v, f, c, areas, held = strip()
-    ends = [ends_at(c, -0.04, 0.04)]
-    band = np.abs(c[:, 1]) < 0.02
-    left = band & (c[:, 0] < -0.03)
-    right = band & (c[:, 0] > 0.03) & (c[:, 0] < 0.125)
-    loose = (np.abs(c[:, 0]) < 0.02) & (c[:, 1] > 0.035)
+    ends, left, right, loose = cut_link(c)
     proposal = left | right | loose
     alpha = np.where(left | right, 1.0, 0.05) + np.where(loose, 0.5, 0.0) - 0.01 * np.abs(c[:, 1])
     target = areas[left | right | loose].sum() / areas.sum()
@@ -146,11 +153,7 @@ def test_kept_faces_stay_joined_to_the_structure():
     """Faces the step guard keeps are neither dropped as islands nor trimmed, though they
     rank low: the loose patch of the cut-link proposal, kept, is joined to the rest."""
     v, f, c, areas, held = strip()
-    ends = [ends_at(c, -0.04, 0.04)]
-    band = np.abs(c[:, 1]) < 0.02
-    left = band & (c[:, 0] < -0.03)
-    right = band & (c[:, 0] > 0.03) & (c[:, 0] < 0.125)
-    loose = (np.abs(c[:, 0]) < 0.02) & (c[:, 1] > 0.035)
+    ends, left, right, loose = cut_link(c)
     proposal = left | right | loose
     alpha = np.where(left | right, 1.0, 0.05) - 0.01 * np.abs(c[:, 1])
     target = areas[proposal].sum() / areas.sum()

@@ -248,9 +248,16 @@ def progress_plot(run: Path, rows: list[dict]) -> Path:
     it = [r["iteration"] for r in rows]
     fig, ax = plt.subplots(figsize=(7, 4), dpi=100)
     keys = [k for k in rows[0] if k.startswith("rho[")]
+    taken_back = [r for r in rows if r.get("rejected")]  # steps the guard took back: markers, off the lines
+    kept = [r for r in rows if not r.get("rejected")]
     for k in keys:
         style = "--" if k.endswith(":off]") else "-"
-        ax.plot(it, [r.get(k, np.nan) for r in rows], style, label=k[4:-1])
+        (line,) = ax.plot([r["iteration"] for r in kept], [r.get(k, np.nan) for r in kept], style, label=k[4:-1])
+        if taken_back:
+            ax.plot([r["iteration"] for r in taken_back], [r.get(k, np.nan) for r in taken_back], "x",
+                    color=line.get_color(), alpha=0.6)
+    if taken_back:
+        ax.plot([], [], "x", color="grey", label="step taken back (guard)")
     ax.set_xlabel("iteration")
     ax.set_ylabel("relative energy density rho")
     ax2 = ax.twinx()
