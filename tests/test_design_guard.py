@@ -54,6 +54,7 @@ def test_rejections_give_up_after_the_retries_and_the_area_cap():
     # retries: after GUARD_RETRIES rejections in a row the step goes through
     rows = _rows("", *(["a"] * GUARD_RETRIES))
     assert last_accepted(rows) == 0 and rejections_in_a_row(rows) == GUARD_RETRIES
+    assert last_accepted(rows[:1] + [{"rejected": "", "unconverged_states": "a[on]"}]) == 0  # no reference
     assert guard_step(rows, {"a": 0.1}, 0.5, removed, None, areas, 0.2) == ([], None)
     # area cap: the guarded faces stay below GUARD_AREA of the target area
     many = np.zeros(100, bool)

@@ -43,9 +43,9 @@ def collapsed(terms: dict[str, float], before: dict[str, float], guard: float) -
 
 def last_accepted(metrics) -> int | None:
     """Index (into ``metrics``, one row per finished iteration) of the last accepted
-    iteration, or None."""
+    iteration whose states all converged (the guard's reference), or None."""
     for i in range(len(metrics) - 1, -1, -1):
-        if not metrics[i].get(REJECTED):
+        if not metrics[i].get(REJECTED) and not metrics[i].get("unconverged_states"):
             return i
     return None
 
