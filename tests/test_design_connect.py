@@ -162,3 +162,17 @@ def test_kept_faces_stay_joined_to_the_structure():
     assert out[loose].all()
     assert islands(f, out, links=ends, adjacency=adj) == 1
     assert abs(areas[out].sum() / areas.sum() - target) < 0.01
+
+
+def test_clutch_ends_are_joined_to_what_the_body_holds_not_to_a_floating_part():
+    """A proposal around the clutch that reaches neither held edge (all of it floats on the
+    body, however sensitive): the repair joins the clutch's ends to a held edge."""
+    v, f, c, areas, held = strip()
+    ends = [ends_at(c, -0.04, 0.04)]
+    patch = (np.abs(c[:, 0]) < 0.07) & (np.abs(c[:, 1]) < 0.02)
+    alpha = np.where(patch, 1.0, 0.0) - 0.01 * np.abs(c[:, 0])
+    target = 1.5 * areas[patch].sum() / areas.sum()
+    adj = face_adjacency(f)
+    out = connect_design(patch, alpha, areas, target, adj, ends, held)
+    holding = anchored(out, adj, held, ())
+    assert all(holding[a].all() and holding[b].all() for a, b in ends)
