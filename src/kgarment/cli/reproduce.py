@@ -62,8 +62,8 @@ def add_parsers(sub) -> None:
                       "cross-evaluation of the sleeve and shirt designs, and a report with tables and pictures. "
                       "Runs and evaluations are kept in OUT and reused: run it again to continue.")
     sp.add_argument("--resolution", default="preview", choices=tuple(RESOLUTIONS),
-                    help="tiny: a smoke run (3 iterations); preview (default): subdivision 0, 3%% BESO steps; "
-                         "default: the example files as they are (subdivision 1)")
+                    help="tiny: a smoke run (3 iterations); preview (default): subdivision 0, the target "
+                         "shrinking by 3%% per iteration; default: the example files as they are (subdivision 1)")
     sp.add_argument("--out", default="runs/reproduce", help="output folder (default runs/reproduce)")
     sp.add_argument("--experiments", help="comma-separated subset of experiments (default: all)")
     sp.add_argument("--preset", choices=C.PRESET_NAMES, help="material preset of every experiment (default: the "

@@ -7,7 +7,8 @@ for the quick ones, the BESO step sizes:
 * ``tiny``: subdivision 0, 3 BESO iterations with 20% steps, 2 random seeds (the test
   suite's smoke run; the designs are not converged and mean nothing);
 * ``preview``: subdivision 0, evolution ratio 3% (the paper's 1.5% doubled, so about 65
-  iterations to a 15% budget), at most 120 iterations, 10 random seeds;
+  iterations to a 15% budget) with the paper's 1.5% of faces added per iteration, at most
+  120 iterations, 10 random seeds;
 * ``default``: the example files as they are (subdivision 1, the paper's 1.5% steps).
 
 Design runs live in ``OUT/runs/<experiment>`` (ours) and ``OUT/runs/<experiment>-compliance``
@@ -59,7 +60,7 @@ def experiment_problem(exp: Experiment, res: Resolution, objective: str = "activ
         g = dataclasses.replace(g, subdivision=res.subdivision)
     changes = {}
     if res.er is not None:
-        changes.update(er=res.er, ar_max=res.er)
+        changes.update(er=res.er, ar_max=res.er if res.ar_max is None else res.ar_max)
     if res.max_iterations is not None:
         changes["max_iterations"] = res.max_iterations
     if res.window is not None:

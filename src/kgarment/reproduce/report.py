@@ -140,6 +140,8 @@ def build_markdown(doc: dict, figures: dict) -> str:
     res = doc["resolution"]
     sub = res["subdivision"] if res["subdivision"] is not None else "of the example files"
     er = "" if res["er"] is None else f", BESO evolution ratio {res['er']}"
+    if res["er"] is not None and res.get("ar_max") is not None:
+        er += f" with {res['ar_max']} of the faces added per iteration at most"
     md = ["# kgarment reproduces *Computational Design of Active Kinesthetic Garments* (UIST 2022)", "",
           f"Resolution **{res['name']}** (garment subdivision {sub}{er}), material preset "
           f"**{doc.get('preset', 'paper')}**, {res['seeds']} random seeds. "

@@ -32,11 +32,16 @@ def targets(doc: dict) -> list[str]:
     """Bullets: the issue's targets for our designs, each met or missed, with the numbers;
     then what limits the missed ones."""
     out = [f"- `{t.name}`: {_ok(t.ok)}: {t.detail}" for t in evaluate_targets(doc)]
-    out += ["", "What limits them (measured, see `README.md` and the commits of the connected update):",
+    out += ["", "What limits them (measured, see `README.md`, \"Design runs\"):",
             "- On this frictionless body only the attachment rings and bands that close around an arm or the "
             "torso hold load: an open strip of reinforcement slides. A clutch carries load only in series between "
-            "such anchors; where a motion moves no anchored part near a clutch (the lower back clutches in arms "
-            "forward), no design can load it in that motion.",
+            "such anchors, and the objective routes each motion through its strongest clutch; `[design] balance` "
+            "rewards every clutch of a motion's set for carrying load on its own (one more state per clutch and "
+            "motion; the single-motion shirts use it).",
+            "- A membrane on a frictionless body has several equilibria: one BESO step can move a motion's ON "
+            "state to another (the sleeve turns about the arm until its clutch lies over the elbow's axis) and "
+            "BESO then cuts the idle path; `[design] guard` takes such steps back (the multi-motion sleeves and "
+            "arms forward use it).",
             "- Bend forward moves the arms too (the reference amounts: shoulder flexion and elbow), so the arm-band "
             "path through the upper back clutch carries most of it.",
             "- Preview resolution: 18 mm edges and doubled BESO steps; `--resolution default` is the comparison "
