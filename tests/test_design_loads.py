@@ -46,6 +46,9 @@ def test_the_only_load_path_carries_everything_and_a_loose_clutch_nothing(tube_l
     linked, loose = loads.get("pull", "linked"), loads.get("pull", "loose")
     assert linked.share == pytest.approx(1.0, abs=0.05) and linked.loaded
     assert abs(loose.share) < 0.03 and not loose.loaded
+    # with two clutches, switching one off leaves the other alone ON: needed = 1 - the other's share
+    assert linked.needed == pytest.approx(1.0 - loose.share, abs=1e-9)
+    assert loose.needed == pytest.approx(1.0 - linked.share, abs=1e-9) and abs(loose.needed) < 0.05
     assert loads.unloaded() == ["loose"]
     (g,) = loads.garment
     assert g.energy_on_J > 3 * g.energy_off_J > 0  # switching the linked clutch on resists the pull
@@ -55,7 +58,7 @@ def test_the_only_load_path_carries_everything_and_a_loose_clutch_nothing(tube_l
 def test_loads_in_json_and_chart(tube_loads, tmp_path):
     doc = tube_loads.to_json()
     assert {c["clutch"] for c in doc["clutches"]} == {"linked", "loose"}
-    assert set(doc["clutches"][0]) == {"motion", "clutch", "share", "tension_N", "loaded"}
+    assert set(doc["clutches"][0]) == {"motion", "clutch", "share", "needed", "tension_N", "loaded"}
     assert set(doc["garment"][0]) == {"motion", "energy_on_J", "energy_off_J"}
     assert "linked" in tube_loads.loads.table()
     png = load_chart(tube_loads.loads, tmp_path / "loads.png", "tube")
@@ -81,3 +84,36 @@ def test_the_control_plan_switches_the_linked_clutch_alone(tube, tube_loads):
     assert "| pull | linked |" in plan_markdown(plan, "tube")
     greedy = make_plan(evaluator, design, exhaustive_up_to=0)
     assert not greedy.exhaustive and greedy.smallest("pull").clutches == ("linked",)
+
+
+@pytest.fixture(scope="module")
+def series_loads():
+    """The tube of :func:`tube` with two 8 cm clutches one after the other on the same side
+    and a third on the other side, on plain cloth.  Reinforced (2.6 cm bands): the held
+    bottom ring to the first clutch's start, a bridge from its end to the second's start,
+    and the second's end to the pulled top ring.  The two are in series on the one load
+    path: either alone ON leaves the other a soft cloth link (share ~0), either alone OFF
+    breaks the path (needed ~1); the third changes nothing either way."""
+    tube = Tube(0.05, 0.0, 0.3, 48, 31)
+    clutches = [tube.clutch("lower", 0.0, 0.06, 0.14, 0.01, 16), tube.clutch("upper", 0.0, 0.16, 0.24, 0.01, 16),
+                tube.clutch("loose", np.pi, 0.11, 0.19, 0.01, 16)]
+    model = build_model(tube.vertices, tube.faces, clutches, preset="paper")
+    c = tube.vertices[tube.faces].mean(axis=1)
+    z, band = c[:, 2], np.abs(np.arctan2(c[:, 1], c[:, 0])) < 0.26
+    reinforced = band & ((z < 0.075) | ((z > 0.125) & (z < 0.175)) | (z > 0.225))
+    setup = DesignSetup.build(model, {"pull": tube.motion("pull", 0.05, 0.0)}, "active", BesoParams(),
+                              SolverOptions(tol=1e-5, max_iter=300))
+    return Evaluator(setup).evaluate(np.where(reinforced, 1.0, 1e-3), loads=True).loads
+
+
+def test_clutches_in_series_are_each_needed(series_loads):
+    lower, upper, loose = (series_loads.get("pull", n) for n in ("lower", "upper", "loose"))
+    for c in (lower, upper):
+        assert abs(c.share) < 0.05 and c.needed == pytest.approx(1.0, abs=0.05) and c.loaded
+        assert c.effect == c.needed
+    assert abs(loose.share) < 0.03 and abs(loose.needed) < 0.03 and not loose.loaded
+    assert series_loads.unloaded() == ["loose"]
+    # the one path carries one force: the two clutches' tensions agree, far above the loose one's
+    assert lower.tension_N == pytest.approx(upper.tension_N, rel=0.1)
+    assert lower.tension_N > 10 * abs(loose.tension_N)
+    assert "needed" in series_loads.table()

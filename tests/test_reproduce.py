@@ -131,7 +131,7 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
     assert summary["resolution"] == "tiny" and set(summary["experiments"]) == set(exps.split(","))
     ext = summary["experiments"]["arm_extension"]["ours"]
     assert set(ext) == {"rho", "parts", "clutch_ends_supported", "clutch_ends", "clutches"}
-    assert set(ext["clutches"]["elbow_inner.R"]) == {"share", "tension_N"}
+    assert set(ext["clutches"]["elbow_inner.R"]) == {"share", "needed", "tension_N"}
     assert {"every_clutch_loaded", "clutch_ends_supported", "one_part", "single_on_off",
             "beats_manual"} <= set(summary["targets"])
     assert all(isinstance(v, bool) for v in summary["targets"].values())

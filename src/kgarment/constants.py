@@ -69,8 +69,9 @@ CLUTCH_RANGES = {"holding_stress": (1.0, 1e8), "voltage": (0.0, 1e4), "dielectri
 SLIPPING = 0.98            # a clutch slips where its tension reaches this share of its holding force
 
 # ----- judging a design as a garment (method.md section 9) -----------------------------------
-LOADED_SHARE = 0.10    # a clutch is "loaded" in a motion when switching it on alone gives at least
-                       # this share of the energy that switching all clutches on adds
+LOADED_SHARE = 0.10    # a clutch is "loaded" in a motion when switching it on alone gives, or
+                       # switching it off alone loses, at least this share of the energy that
+                       # switching all clutches on adds (kgarment.design.loads)
 MIN_GAIN = 0.01        # below this share of the OFF energy, switching the clutches on changes nothing
 LOAD_TOL = 1e-3        # solver tolerance of the one-clutch-ON states behind the shares
 PLAN_EXHAUSTIVE = 6     # kgarment plan tries every clutch subset up to this many clutches, greedy sets beyond

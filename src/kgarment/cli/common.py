@@ -200,8 +200,8 @@ def print_evaluation(res) -> None:
     print(f"reinforced area {100 * res.area:.1f}%; islands {res.islands} ({res.islands_with_clutches} counting "
           f"clutches as links); clutch ends on reinforcement {res.clutch_ends_supported}/{res.clutch_ends}")
     if res.loads is not None:
-        print("clutch loads (share of the ON - OFF garment energy with only that clutch ON / tension all ON; "
-              "* loaded):")
+        print("clutch loads (share of the ON - OFF garment energy with only that clutch ON, the share lost with "
+              "only it OFF / tension all ON; * loaded: either >= 0.1):")
         print(res.loads.table())
         idle = res.loads.unloaded()
         if idle:

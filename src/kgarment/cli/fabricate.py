@@ -81,7 +81,8 @@ def cmd_fabricate(args) -> int:
             flag = "" if b["converged"] and a["converged"] else "  (NOT converged)"
             print(f"  rho {b['motion']:22s} {b['state']:5s} {b['rho']:7.3f} -> {a['rho']:7.3f}{flag}")
         if ev_after.loads is not None:
-            print("clutch loads of the cleaned design (share of the ON - OFF energy / tension; *: loaded):")
+            print("clutch loads of the cleaned design (share of the ON - OFF energy alone ON, "
+                  "lost alone OFF / tension; *: loaded):")
             print(ev_after.loads.table())
     for n in fab.sheet.clutches:
         print(f"  {n.tag} {n.name}: {n.status}")

@@ -8,9 +8,16 @@ Per motion and clutch k (method.md section 9):
   then their activation will have no effect on the user"); the only
   load path has share ~1.  Shares of several clutches need not add to 1 (paths in series
   or in parallel);
+* ``needed``: the share of the ON - OFF energy lost when only clutch k is switched off
+  (the motion's set without k).  Two clutches in series on one load path each have share
+  ~0 (alone, the other OFF clutch is a soft link that breaks the path) and needed ~1
+  (switching either off breaks it): the long-sleeve shirt's outer elbow clutch, share
+  0.01 in every motion, carries 200-490 N and loses 26-56% of three motions when switched
+  off (preview, measured).  NaN for a clutch the motion does not switch on;
 * ``tension_N``: the force carried along the clutch at the target pose with all clutches
   ON (:func:`kgarment.sim.clutch_tensions`, what a load cell in its place measures);
-* ``loaded``: share >= :data:`kgarment.constants.LOADED_SHARE`;
+* ``loaded``: share or needed >= :data:`kgarment.constants.LOADED_SHARE`: switching the
+  clutch on alone, or off alone, changes what the wearer works against by that much;
 * ``holding_N``, ``slipping``: with the slip model (``[clutches] model = "slip"``,
   :mod:`kgarment.sim.slip`) the force the clutch holds at its activation in the ON state
   (``g^2 F_h``) and whether it slides there (tension at
@@ -25,7 +32,9 @@ Garment energy is the total energy of an equilibrium (J): what the wearer works 
 when moving from the rest pose into the target pose.  The all-ON and all-OFF equilibria
 come from the one design evaluator (:meth:`kgarment.design.Evaluator.solve_design`: its
 two starts, the evaluation tolerance); a state with one clutch ON starts from the all-ON
-equilibrium with the other clutches switched off and is solved to
+equilibrium with the other clutches switched off (one clutch OFF likewise; a state that
+is all OFF or one of the one-clutch-ON states, as with one or two clutches, is not solved
+again) and is solved to
 :data:`kgarment.constants.LOAD_TOL` (shares need per cent, not digits: at 1e-3 energies
 are accurate to ~1e-6, ``kgarment.sim.options``), falling back to the evaluator's starts
 when that does not converge.
@@ -47,8 +56,9 @@ from kgarment.sim.slip import slides
 
 @dataclass(frozen=True)
 class ClutchLoad:
-    """One clutch in one motion: share (dimensionless), tension_N (N), loaded, and with the
-    slip model the force it holds (holding_N, N) and whether it slides (slipping)."""
+    """One clutch in one motion: share and needed (dimensionless, the module docstring),
+    tension_N (N), loaded, and with the slip model the force it holds (holding_N, N) and
+    whether it slides (slipping)."""
 
     motion: str
     clutch: str
@@ -57,10 +67,17 @@ class ClutchLoad:
     loaded: bool
     holding_N: float | None = None
     slipping: bool = False
+    needed: float = float("nan")
+
+    @property
+    def effect(self) -> float:
+        """The larger of share and needed (NaN where neither is defined): what switching this
+        clutch alone changes, as a share of the motion's ON - OFF energy."""
+        return max((v for v in (self.share, self.needed) if math.isfinite(v)), default=float("nan"))
 
     def row(self) -> dict:
-        row = {"motion": self.motion, "clutch": self.clutch, "share": self.share, "tension_N": self.tension_N,
-               "loaded": self.loaded}
+        row = {"motion": self.motion, "clutch": self.clutch, "share": self.share, "needed": self.needed,
+               "tension_N": self.tension_N, "loaded": self.loaded}
         if self.holding_N is not None:  # the slip model's
             row.update(holding_N=self.holding_N, slipping=self.slipping)
         return row
@@ -104,18 +121,18 @@ class LoadReport:
         return {"clutches": [c.row() for c in self.clutches], "garment": [g.row() for g in self.garment]}
 
     def table(self) -> str:
-        """A plain-text table: per motion the garment energy ON/OFF, per clutch share and
-        tension (``*``: loaded, ``~``: slipping at its holding force)."""
+        """A plain-text table: per motion the garment energy ON/OFF, per clutch share,
+        needed and tension (``*``: loaded, ``~``: slipping at its holding force)."""
         names = self.clutch_names
-        head = f"{'motion':22s} {'E on (J)':>10s} {'E off (J)':>10s}  " + "  ".join(f"{n[:16]:>16s}" for n in names)
-        lines = [head, f"{'':22s} {'':>10s} {'':>10s}  " + "  ".join(f"{'share / N':>16s}" for _ in names)]
+        head = f"{'motion':22s} {'E on (J)':>10s} {'E off (J)':>10s}  " + "  ".join(f"{n[:21]:>21s}" for n in names)
+        lines = [head, f"{'':22s} {'':>10s} {'':>10s}  " + "  ".join(f"{'share needed / N':>21s}" for _ in names)]
         for g in self.garment:
             cells = []
             for n in names:
                 c = self.get(g.motion, n)
-                share = "  n/a" if not math.isfinite(c.share) else f"{c.share:5.2f}"
+                share, needed = (("  n/a" if not math.isfinite(v) else f"{v:5.2f}") for v in (c.share, c.needed))
                 mark = ("*" if c.loaded else " ") + ("~" if c.slipping else "")
-                cells.append(f"{share} / {c.tension_N:6.1f}{mark}".rjust(16))
+                cells.append(f"{share} {needed} / {c.tension_N:6.1f}{mark}".rjust(21))
             lines.append(f"{g.motion[:22]:22s} {g.energy_on_J:10.4g} {g.energy_off_J:10.4g}  " + "  ".join(cells))
         holds = {n: max((c.holding_N for c in self.clutches if c.clutch == n and c.holding_N is not None),
                         default=None) for n in names}
@@ -169,62 +186,93 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
     model = setup.model
     names = [c.name for c in model.clutches]
     motions = evaluator.motion_names(motions)
-    K = len(names)
     ends, known = on_off_equilibria(evaluator, design, motions, known)
-    singles = []
+    alone, without, todo = {}, {}, []
     for m in motions:
-        g_on = setup.on_activation(m)  # a clutch alone at its value in the motion's set (1 if not in it)
-        for k, name in enumerate(names):
-            singles += evaluator.activation_states(np.eye(K)[k] * (g_on[k] if g_on[k] > 0 else 1.0), [m],
-                                                   f"only {name}")
-    known.update(activation_equilibria(evaluator, design, singles, known))
-    wanted = ends + singles
-    states = dict(wanted)
+        g_on = setup.on_activation(m)
+        same = {tuple(np.zeros(len(names))): (m, "off")}  # activation -> the state solving it
+        for k, name in enumerate(names):  # a clutch alone at its value in the motion's set (1 if not in it)
+            alone[(m, k)] = _state_for(evaluator, m, _one_hot(len(names), k, g_on[k] if g_on[k] > 0 else 1.0),
+                                       f"only {name}", same, todo)
+        for k, name in enumerate(names):  # the motion's set with this clutch off
+            if g_on[k] > 0:
+                without[(m, k)] = _state_for(evaluator, m, np.where(np.arange(len(names)) == k, 0.0, g_on),
+                                             f"without {name}", same, todo)
+    known.update(activation_equilibria(evaluator, design, todo, known))
+    states = dict(ends)
     loads, garment = [], []
     for m in motions:
         on: StateResult = known[(m, "on")]
-        off: StateResult = known[(m, "off")]
-        e_on, e_off = on.total_energy, off.total_energy
+        e_on, e_off = on.total_energy, known[(m, "off")].total_energy
         garment.append(MotionEnergy(m, e_on, e_off))
         tension = clutch_tensions(model, design, states[(m, "on")], on.x, setup.solver)
         gain = e_on - e_off
         hold = model.holding(setup.on_activation(m))
         for k, name in enumerate(names):
-            share = (known[(m, f"only {name}")].total_energy - e_off) / gain if gain > MIN_GAIN * abs(e_off) \
-                else float("nan")
+            share = needed = float("nan")
+            if gain > MIN_GAIN * abs(e_off):
+                share = (known[alone[(m, k)]].total_energy - e_off) / gain
+                if (m, k) in without:
+                    needed = (e_on - known[without[(m, k)]].total_energy) / gain
             h = float(hold[k]) if math.isfinite(hold[k]) else None
-            loads.append(ClutchLoad(m, name, float(share), float(tension[k]),
-                                    bool(math.isfinite(share) and share >= LOADED_SHARE), h,
-                                    slides(tension[k], hold[k])))
+            load = ClutchLoad(m, name, float(share), float(tension[k]), False, h, slides(tension[k], hold[k]),
+                              float(needed))
+            loads.append(dataclasses.replace(load, loaded=bool(load.effect >= LOADED_SHARE)))
     return LoadReport(tuple(loads), tuple(garment))
 
 
+def _one_hot(n: int, k: int, value: float) -> np.ndarray:
+    g = np.zeros(n)
+    g[k] = value
+    return g
+
+
+def _state_for(evaluator, motion: str, activation: np.ndarray, label: str, same: dict, todo: list):
+    """The key of the state of ``motion`` under ``activation`` (K,): one already asked for
+    with the same activation (``same``: activation tuple -> key), else a new one appended
+    to ``todo``."""
+    g = tuple(float(a) for a in activation)
+    if g not in same:
+        keyed = evaluator.activation_states(activation, [motion], label)
+        todo += keyed
+        same[g] = keyed[0][0]
+    return same[g]
+
+
 def load_chart(report: LoadReport, path, title: str = "") -> Path:
-    """A bar chart per motion: each clutch's share of the ON - OFF energy (bars, left axis)
-    and its tension in newtons (labels), with the loaded threshold drawn; a PNG at ``path``."""
+    """A bar chart per motion: per clutch its share of the ON - OFF energy (left bar) and
+    the share lost without it (needed, right bar, hatched), its tension in newtons (labels),
+    the loaded threshold drawn (a clutch is loaded where either bar reaches it); a PNG at
+    ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    def finite(v: float) -> float:
+        return v if math.isfinite(v) else 0.0
+
     names, motions = report.clutch_names, report.motions
     fig, axes = plt.subplots(1, len(motions), figsize=(max(3.2 * len(motions), 4.5), 3.4), dpi=100, sharey=True,
                              squeeze=False)
+    x = np.arange(len(names))
     for ax, m in zip(axes[0], motions):
         loads = [report.get(m, n) for n in names]
-        shares = [0.0 if not math.isfinite(c.share) else c.share for c in loads]
         colors = ["#2a9d8f" if c.loaded else "#bbbbbb" for c in loads]
-        bars = ax.bar(range(len(names)), shares, color=colors)
-        for b, c in zip(bars, loads):
-            ax.annotate(f"{c.tension_N:.0f} N", (b.get_x() + b.get_width() / 2, max(b.get_height(), 0.0)),
-                        ha="center", va="bottom", fontsize=7)
+        alone = ax.bar(x - 0.2, [finite(c.share) for c in loads], 0.4, color=colors, label="alone ON (share)")
+        ax.bar(x + 0.2, [finite(c.needed) for c in loads], 0.4, color=colors, alpha=0.55, hatch="//",
+               edgecolor="white", label="lost when OFF (needed)")
+        for b, c in zip(alone, loads):
+            top = max(finite(c.share), finite(c.needed), 0.0)
+            ax.annotate(f"{c.tension_N:.0f} N", (b.get_x() + 0.4, top), ha="center", va="bottom", fontsize=7)
         ax.axhline(LOADED_SHARE, color="#e76f51", lw=0.8, ls="--")
-        ax.set_xticks(range(len(names)), names, rotation=30, ha="right", fontsize=7)
+        ax.set_xticks(x, names, rotation=30, ha="right", fontsize=7)
         ax.set_title(m, fontsize=9)
         ax.grid(axis="y", alpha=0.3)
     axes[0][0].set_ylabel("share of the ON - OFF energy")
-    axes[0][0].set_ylim(min(0.0, *[c.share for c in report.clutches if math.isfinite(c.share)]) - 0.05,
-                        max(1.05, *[c.share for c in report.clutches if math.isfinite(c.share)]) + 0.1)
+    values = [v for c in report.clutches for v in (c.share, c.needed) if math.isfinite(v)]
+    axes[0][0].set_ylim(min(0.0, *values) - 0.05, max(1.05, *values) + 0.1)
+    axes[0][-1].legend(fontsize=6, loc="upper right")
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()

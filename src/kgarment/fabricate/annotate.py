@@ -50,13 +50,13 @@ def load_status(name: str, loads) -> tuple[bool | None, str]:
     rows = [c for c in loads.clutches if c.clutch == name]
     on = [c for c in rows if c.loaded]
     if on:
-        best = max(on, key=lambda c: c.share)
-        return True, (f"loaded in {', '.join(c.motion for c in on)} (share {best.share:.2f}, "
-                      f"{best.tension_N:.0f} N)")
-    shares = [c.share for c in rows if math.isfinite(c.share)]
+        best = max(on, key=lambda c: c.effect)
+        return True, (f"loaded in {', '.join(c.motion for c in on)} (share {best.share:.2f}, needed "
+                      f"{best.needed:.2f}, {best.tension_N:.0f} N)")
+    shares = [c.effect for c in rows if math.isfinite(c.effect)]
     if not shares:
         return False, "NO LOAD: switching the clutches on changes nothing in the evaluated motions"
-    return False, f"NO LOAD in the evaluated motions (share at most {max(shares):.2f})"
+    return False, f"NO LOAD in the evaluated motions (share and needed at most {max(shares):.2f})"
 
 
 def clutch_notes(strips, pieces, loads=None) -> list[ClutchNote]:

@@ -89,7 +89,7 @@ class CachedEvaluator:
         ``loads`` the per-clutch loads): :meth:`kgarment.design.DesignEvaluation.to_json`
         with ``label``."""
         design = np.asarray(design, dtype=np.float64)
-        key = f"{self.name}|{design_key(design)}" + ("|loads" if loads else "")
+        key = f"{self.name}|{design_key(design)}" + ("|loads2" if loads else "")  # loads2: with needed
         if self.cache is not None and (hit := self.cache.get(key)) is not None:
             return hit
         out = {"label": label, **self.evaluator.evaluate(design, loads=loads).to_json()}

@@ -178,8 +178,9 @@ def _design_summary(ev: dict) -> dict:
     """One design's entry of results.json (the issue's schema)."""
     clutches: dict = {}
     for c in ev.get("clutches", []):
-        entry = clutches.setdefault(c["clutch"], {"share": {}, "tension_N": {}})
+        entry = clutches.setdefault(c["clutch"], {"share": {}, "needed": {}, "tension_N": {}})
         entry["share"][c["motion"]] = c["share"]
+        entry["needed"][c["motion"]] = c.get("needed", float("nan"))
         entry["tension_N"][c["motion"]] = c["tension_N"]
     return {"rho": ev["rho"], "parts": ev["islands_with_clutches"], "clutch_ends_supported": ev["clutch_ends_supported"],
             "clutch_ends": ev["clutch_ends"], "clutches": clutches}

@@ -80,7 +80,7 @@ def assessment(e: dict) -> list[str]:
 
 
 def load_rows(e: dict) -> list[list[str]]:
-    """Per motion and clutch: share and tension of our design and of the manual baseline."""
+    """Per motion and clutch: share, needed and tension of our design and of the manual baseline."""
     ev = e["evaluations"]
     rows = []
     kinds = [k for k in ("ours", "manual") if ev.get(k, {}).get("clutches")]
@@ -90,8 +90,8 @@ def load_rows(e: dict) -> list[list[str]]:
         cells = []
         for k in kinds:
             x = next(y for y in ev[k]["clutches"] if y["motion"] == c["motion"] and y["clutch"] == c["clutch"])
-            share = "n/a" if x["share"] != x["share"] else f"{x['share']:.2f}"
-            cells.append(f"{share} / {x['tension_N']:.0f} N" + (" *" if x["loaded"] else "")
+            share, needed = ("n/a" if v != v else f"{v:.2f}" for v in (x["share"], x.get("needed", float("nan"))))
+            cells.append(f"{share} / {needed} / {x['tension_N']:.0f} N" + (" *" if x["loaded"] else "")
                          + (" ~" if x.get("slipping") else ""))
         rows.append([c["motion"], c["clutch"], *cells])
     return rows

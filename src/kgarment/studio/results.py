@@ -94,13 +94,14 @@ def results_table(a: SimResult | None, b: SimResult | None, stale_a: bool = Fals
                           f"{r['rho']:.3f}" + ("" if r["converged"] else " (nc)"))
     pairs = list(dict.fromkeys((r["motion"], r["clutch"]) for e in evs for r in e.loads))
     if pairs:
-        lines += [""] + _side_by_side(["motion", "clutch"], [f"share {e.label} / N" for e in evs], pairs, evs,
+        lines += [""] + _side_by_side(["motion", "clutch"], [f"share / needed {e.label} / N" for e in evs], pairs, evs,
                                       lambda e, k: None if (r := e.load(*k)) is None else
-                                      f"{r['share']:.2f} / {r['tension_N']:.0f}" + (" *" if r["loaded"] else ""))
+                                      f"{r['share']:.2f} / {r.get('needed', float('nan')):.2f} / "
+                                      f"{r['tension_N']:.0f}" + (" *" if r["loaded"] else ""))
     notes = []
     if pairs:
-        notes.append("share: of the ON - OFF energy with only that clutch ON; N: its tension with all ON; "
-                     "*: loaded (share >= 0.1).")
+        notes.append("share: of the ON - OFF energy with only that clutch ON; needed: the share lost with only "
+                     "that clutch OFF; N: its tension with all ON; *: loaded (share or needed >= 0.1).")
     if stale_a and a is not None:
         notes.append("A was simulated before the latest edits.")
     if any(not r["converged"] for e in evs for r in e.rows):
