@@ -143,7 +143,7 @@ def test_simulate_compare_and_colour(studio):
     # the load each clutch carries, as in kgarment evaluate
     loads = studio.sims.a.loads
     assert {r["clutch"] for r in loads} == set(st.clutch_names()) and all(np.isfinite(r["tension_N"]) for r in loads)
-    assert "share A / N" in studio.panel.results.content
+    assert "share / needed A / N" in studio.panel.results.content
     studio.settings.motion, studio.settings.mode = "arm_flexion.right", "energy density"
     studio.redraw()
     assert "J/m" in studio.panel.legend.content
