@@ -46,6 +46,7 @@ PROBLEMS = [
      "must be a list of clutch names or a table"),
     ('[design]\nlockout = -1\n', "lockout = -1"),
     ('[design]\nguard = 1.0\n', "guard = 1.0 is outside [0, 0.95]"),
+    ('[design]\ncombine = "max"\n', "[design] combine = 'max'; allowed: sum, product"),
     ('[garment]\nsubdivision = false\n', "subdivision = False; allowed: 0, 1, 2, 3"),
     ('[garment]\nsubdivision = 0.5\n', "subdivision = 0.5; allowed"),
     (ROT % 'axis = "x", degrees = "sixty"', "degrees = 'sixty'; allowed: a number in [-180, 180]"),

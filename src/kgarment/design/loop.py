@@ -39,7 +39,13 @@ from kgarment.design.connect import connect_design
 from kgarment.design.evaluate import pick_equilibrium
 from kgarment.design.guard import REJECTED, TERM, boosted, guard_step, last_accepted, terms_of
 from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
-from kgarment.design.objective import combine_sensitivities, motion_sensitivities, objective_terms
+from kgarment.design.objective import (
+    combine_sensitivities,
+    combined_objective,
+    motion_sensitivities,
+    motion_weights,
+    objective_terms,
+)
 from kgarment.design.setup import DesignSetup, StateKey
 from kgarment.sim import (
     SimState,
@@ -146,13 +152,26 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
                   [r.name for r in results if not r.converged], energy, stored, alpha)
 
 
-def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved) -> np.ndarray:
+def weights(setup: DesignSetup, solved: Solved, reference: dict[StateKey, float]) -> dict[str, float] | None:
+    """The motions' weights of ``[design] combine`` (:func:`kgarment.design.objective.motion_weights`)."""
+    if setup.combine == "sum":
+        return None
+    return motion_weights(setup.combine, objective_terms(setup.objective, solved.energy, reference,
+                                                         list(setup.motions), setup.lockout, setup.balance))
+
+
+def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved,
+                  reference: dict[StateKey, float] | None = None) -> np.ndarray:
     """Step 2: (m,) filtered sensitivities of this iteration (higher = more useful as
-    reinforcement): combined by the objective, filtered, averaged with the previous
-    iteration's; the previous ones when a state did not converge (not twice in a row);
-    protected faces on top."""
+    reinforcement): combined by the objective (the motions weighted by ``[design] combine``
+    against the ``reference`` energies), filtered, averaged with the previous iteration's;
+    the previous ones when a state did not converge (not twice in a row); protected faces
+    on top."""
+    if reference is None:  # iteration 0 is its own reference
+        reference = st.reference or solved.energy
+    w = weights(setup, solved, reference)
     filt = setup.filter_matrix @ combine_sensitivities(setup.objective, solved.alpha, list(setup.motions),
-                                                         setup.lockout, setup.balance, solved.energy)
+                                                         setup.lockout, setup.balance, solved.energy, w)
     if setup.params.history and st.alpha_prev is not None:
         filt = 0.5 * (filt + st.alpha_prev)
     bad = solved.unconverged
@@ -179,7 +198,7 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
     frac = float(areas[design > 0.5].sum() / areas.sum())
     terms = objective_terms(setup.objective, solved.energy, reference, list(setup.motions), setup.lockout,
                             setup.balance)
-    obj = float(sum(terms.values()))
+    obj = combined_objective(setup.combine, terms)
     ends = clutch_end_support(design, setup.end_faces)
     faces = setup.model.garment_faces
     row = {
@@ -226,7 +245,7 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
                                        st.target, st.accepted_alpha)
     if setup.guard > 0 and not rejected and not solved.unconverged:
         accepted = motion_sensitivities(setup.objective, solved.alpha, list(setup.motions), setup.lockout,
-                                        setup.balance, solved.energy)
+                                        setup.balance, solved.energy, weights(setup, solved, reference))
     row[REJECTED] = ",".join(rejected)
     counts = not (solved.unconverged or solved.coarse or rejected)  # NaN: no convergence judged on it
     objectives = st.objectives + (row["objective"] if counts else float("nan"),)
@@ -259,7 +278,7 @@ def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
     solved = solve(setup, st)
     reference, reference_stored = (solved.energy, solved.stored) if st.iteration == 0 else \
         (st.reference, st.reference_stored)
-    filt = sensitivities(setup, st, solved)
+    filt = sensitivities(setup, st, solved, reference)
     row = metrics_row(setup, st, solved, reference, reference_stored)
     nxt = advance(setup, st, solved, filt, row, reference, reference_stored)
     row["seconds"] = time.time() - t0

@@ -17,6 +17,20 @@
                Each G_c's sensitivity is scaled to the size of G's (divided by its largest
                absolute value, times the ON state's largest), so a clutch carrying nothing
                yet still counts.  Measured in the README.
+
+How the motions combine (``[design] combine``, the active objective):
+
+``sum``        the paper's: the motions' terms T_m (:func:`objective_terms`) add up and
+               their normalised sensitivities add up, every motion counting equally;
+``product``    maximise the product of the terms (their geometric mean): d log T_m = dT_m /
+               T_m, so each motion's normalised sensitivity is weighted by 1 / T_m (T_m
+               floored at :data:`PRODUCT_FLOOR`, weights scaled to mean 1).  A motion whose
+               load path is failing weighs more the more it fails, so the design does not
+               give one motion up for the others: on the two-motion sleeve the sum lets
+               flexion fall from rho ON 1.1 to 0.2-0.5 while the budget shrinks from 30% to
+               20% (the sleeve turns about the arm), the product holds both (README).  The
+               scalar objective is then ``n`` times the geometric mean of the floored terms
+               (equal to the sum where the terms are equal).
 """
 
 from __future__ import annotations
@@ -24,9 +38,11 @@ from __future__ import annotations
 import numpy as np
 
 from kgarment.errors import unknown
+from kgarment.problem.spec import COMBINE_NAMES
 from kgarment.problem.spec import OBJECTIVE_NAMES as OBJECTIVES
 
 BALANCE_SHARE = 0.25  # the balance term pushes a clutch's share up to this (loaded: 0.10)
+PRODUCT_FLOOR = 0.02  # combine = "product": a motion's term counts as at least this (weights <= 1 / floor)
 
 
 def states_needed(kind: str) -> tuple[str, ...]:
@@ -73,12 +89,38 @@ def _balance_value(energy: dict[tuple[str, str], float], motion: str) -> float:
     return total
 
 
+def motion_weights(combine: str, terms: dict[str, float]) -> dict[str, float] | None:
+    """{motion: weight of its sensitivities} for ``combine`` from the motions' objective
+    ``terms`` (:func:`objective_terms`): None for "sum" (all 1), 1 / max(T_m, PRODUCT_FLOOR)
+    scaled to mean 1 for "product"."""
+    if combine == "sum":
+        return None
+    if combine != "product":
+        raise unknown("combine", combine, COMBINE_NAMES)
+    w = {m: 1.0 / max(t, PRODUCT_FLOOR) for m, t in terms.items()}
+    mean = sum(w.values()) / max(len(w), 1)
+    return {m: v / mean for m, v in w.items()}
+
+
+def combined_objective(combine: str, terms: dict[str, float]) -> float:
+    """The scalar objective from the motions' ``terms``: their sum, or for "product" n
+    times the geometric mean of the terms floored at PRODUCT_FLOOR."""
+    if combine == "sum":
+        return float(sum(terms.values()))
+    if combine != "product":
+        raise unknown("combine", combine, COMBINE_NAMES)
+    t = np.maximum(np.array(list(terms.values()), dtype=np.float64), PRODUCT_FLOOR)
+    return float(len(t) * np.exp(np.mean(np.log(t)))) if len(t) else 0.0
+
+
 def motion_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], motions,
                          lockout: float = 0.0, balance: float = 0.0,
-                         energy: dict[tuple[str, str], float] | None = None) -> dict[str, np.ndarray]:
+                         energy: dict[tuple[str, str], float] | None = None,
+                         weights: dict[str, float] | None = None) -> dict[str, np.ndarray]:
     """{motion: (m,) its normalised sensitivity} from per-(motion, state) sensitivities,
     each (m,); ``lockout`` weighs the ``lock:`` states, ``balance`` the ``solo:`` states
-    (both the active objective; the balance needs the states' ``energy``, J)."""
+    (both the active objective; the balance needs the states' ``energy``, J); ``weights``
+    (:func:`motion_weights`) scales each motion's (None: 1)."""
     out = {}
     for motion in motions:
         if kind == "active":
@@ -97,15 +139,18 @@ def motion_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], mo
             state = states_needed(kind)[0]
             a = alpha[(motion, state)]
             out[motion] = a / max(a.max(), 1e-300)
+        if weights is not None:
+            out[motion] = out[motion] * weights[motion]
     return out
 
 
 def combine_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], motions,
                           lockout: float = 0.0, balance: float = 0.0,
-                          energy: dict[tuple[str, str], float] | None = None) -> np.ndarray:
+                          energy: dict[tuple[str, str], float] | None = None,
+                          weights: dict[str, float] | None = None) -> np.ndarray:
     """(m,) combined sensitivity: the sum over motions of :func:`motion_sensitivities`."""
     total = 0.0
-    for v in motion_sensitivities(kind, alpha, motions, lockout, balance, energy).values():
+    for v in motion_sensitivities(kind, alpha, motions, lockout, balance, energy, weights).values():
         total = total + v
     return np.asarray(total)
 
@@ -133,6 +178,7 @@ def objective_terms(kind: str, energy: dict[tuple[str, str], float], reference: 
 
 
 def objective_value(kind: str, energy: dict[tuple[str, str], float], reference: dict[tuple[str, str], float],
-                    motions, lockout: float = 0.0, balance: float = 0.0) -> float:
-    """Scalar objective for convergence tracking: the sum of :func:`objective_terms`."""
-    return float(sum(objective_terms(kind, energy, reference, motions, lockout, balance).values()))
+                    motions, lockout: float = 0.0, balance: float = 0.0, combine: str = "sum") -> float:
+    """Scalar objective for convergence tracking: :func:`objective_terms` combined
+    (:func:`combined_objective`)."""
+    return combined_objective(combine, objective_terms(kind, energy, reference, motions, lockout, balance))

@@ -57,7 +57,8 @@ class DesignSetup:
     other motions' sets store in a motion (the active objective's ``lock:`` states);
     balance : weight of the reward for each clutch of a motion's set carrying load on its
     own (the active objective's ``solo:`` states);  guard : the step guard's share
-    (:mod:`kgarment.design.guard`; 0: off).
+    (:mod:`kgarment.design.guard`; 0: off);  combine : "sum" or "product" of the motions'
+    terms (:mod:`kgarment.design.objective`).
     """
 
     model: SimModel
@@ -79,13 +80,14 @@ class DesignSetup:
     lockout: float = 0.0
     balance: float = 0.0
     guard: float = 0.0
+    combine: str = "sum"
 
     @classmethod
     def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
               solver: SolverOptions, evolution_solver: SolverOptions | None = None,
               protected: np.ndarray | None = None, skin_start: bool = False,
               activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0,
-              balance: float = 0.0, guard: float = 0.0) -> DesignSetup:
+              balance: float = 0.0, guard: float = 0.0, combine: str = "sum") -> DesignSetup:
         """Precompute areas, filter, adjacency and clutch ends for ``model``."""
         X, F = model.garment_rest, model.garment_faces
         areas = triangle_areas(X, F)
@@ -106,7 +108,7 @@ class DesignSetup:
                    face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0,
                    attached.astype(np.int64), loops, skin_start,
                    {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout),
-                   float(balance), float(guard))
+                   float(balance), float(guard), combine)
 
     @property
     def n_clutches(self) -> int:
@@ -195,7 +197,8 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
                              skin_start=problem.solver.skin_start,
                              activation=activation_vectors(problem, [c.name for c in use]),
                              lockout=d.lockout if d.objective == "active" else 0.0,
-                             balance=d.balance if d.objective == "active" else 0.0, guard=d.guard)
+                             balance=d.balance if d.objective == "active" else 0.0, guard=d.guard,
+                             combine=d.combine if d.objective == "active" else "sum")
 
 
 def activation_vectors(problem: Problem, names: list[str]) -> dict[str, np.ndarray]:

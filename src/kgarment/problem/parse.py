@@ -20,6 +20,7 @@ from kgarment.clutch.layouts import LAYOUTS
 from kgarment.errors import KgarmentError, unknown
 from kgarment.garment import template_names
 from kgarment.problem.spec import (
+    COMBINE_NAMES,
     DEFAULT_MOTIONS,
     FILTERS,
     METHODS,
@@ -258,7 +259,7 @@ def _design(d: dict) -> DesignSpec:
     ranges = C.DESIGN_RANGES
     beso = section(BesoParams, "design", {k: v for k, v in d.items() if k in beso_keys}, {"filter": FILTERS}, ranges)
     rest = section(_DesignOwn, "design", {k: v for k, v in d.items() if k in own},
-                   {"objective": OBJECTIVE_NAMES}, ranges)
+                   {"objective": OBJECTIVE_NAMES, "combine": COMBINE_NAMES}, ranges)
     return DesignSpec(beso=beso, **asdict(rest), levels=_levels(d.get("levels", [])))
 
 
@@ -289,6 +290,7 @@ class _DesignOwn:
     lockout: float = 0.0
     balance: float = 0.0
     guard: float = 0.0
+    combine: str = "sum"
 
 
 HARDWARE = ("model", "holding_stress", "voltage", "dielectric_thickness", "permittivity", "friction",

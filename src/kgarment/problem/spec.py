@@ -15,6 +15,7 @@ from kgarment.body import Motion, MotionLibrary, Phenotype
 DEFAULT_MOTIONS = ("arms_forward", "arms_raise", "bend_forward")
 DEFAULT_LAYOUT = {"short_sleeve_shirt": "shirt", "long_sleeve_shirt": "long_sleeve", "arm_sleeve": "sleeve"}
 OBJECTIVE_NAMES = ("active", "passive", "compliance")
+COMBINE_NAMES = ("sum", "product")
 FILTERS = ("one_ring", "radius")
 PRESET_NAMES = C.PRESET_NAMES
 METHODS = ("newton", "lbfgs")
@@ -138,7 +139,10 @@ class DesignSpec:
     levels : coarser subdivision levels to design at first, increasing, each below the
     garment's (coarse-to-fine, :mod:`kgarment.design.refine`); () designs at the garment's
     level throughout;  guard : a BESO step after which some motion's objective term falls
-    by more than this share is taken back (0: off; :mod:`kgarment.design.guard`).
+    by more than this share is taken back (0: off; :mod:`kgarment.design.guard`);
+    combine : how the motions' terms make the objective: "sum" (the paper's) or
+    "product" (each motion's sensitivities weighted by the inverse of its term, so that no
+    motion is given up for the others; :mod:`kgarment.design.objective`).
     """
 
     objective: str = "active"
@@ -149,6 +153,7 @@ class DesignSpec:
     balance: float = 0.0
     levels: tuple[int, ...] = ()
     guard: float = 0.0
+    combine: str = "sum"
 
     def flat(self) -> dict:
         """The [design] table as written in a problem file (BESO fields flattened)."""
@@ -161,6 +166,8 @@ class DesignSpec:
             out["levels"] = list(self.levels)
         if self.guard:
             out["guard"] = self.guard
+        if self.combine != "sum":
+            out["combine"] = self.combine
         return out
 
 
