@@ -15,6 +15,7 @@ from kgarment.design.beso import (
     one_ring_filter,
     radius_filter,
     sensitivity_factor,
+    settled_ar,
     update_design,
 )
 from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
@@ -77,6 +78,23 @@ def test_update_meets_the_target_and_the_add_ratio():
     free = update_design(x, alpha, areas, 0.45, BesoParams(ar_max=1.0))
     s = free > 0.5
     assert alpha[s].min() >= alpha[~s].max()
+
+
+def test_settle_halves_the_additions_at_the_target():
+    p = BesoParams(ar_max=0.016, settle=4)
+    assert settled_ar(p, 0) == 0.016  # on the way to the target: the paper's ratio
+    assert settled_ar(p, 4) == pytest.approx(0.008) and settled_ar(p, 8) == pytest.approx(0.004)
+    assert settled_ar(p, 2) == pytest.approx(0.016 / math.sqrt(2))
+    assert settled_ar(BesoParams(ar_max=0.016), 50) == 0.016  # settle = 0: off
+    # an update allowed no addition keeps the design's reinforced faces, whatever alpha says
+    rng = np.random.default_rng(1)
+    m = 1000
+    areas = np.ones(m)
+    x = np.where(np.arange(m) < 300, 1.0, 1e-3)
+    new = update_design(x, rng.random(m), areas, 0.3, p, ar=0.0)
+    np.testing.assert_array_equal(new, x)
+    few = update_design(x, rng.random(m), areas, 0.3, p, ar=0.005)
+    assert ((few > 0.5) & (x < 0.5)).sum() == 5 and (few > 0.5).sum() == 300
 
 
 def test_convergence_test():

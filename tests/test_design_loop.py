@@ -140,3 +140,23 @@ def test_activation_continuation_reaches_the_on_equilibrium(anny_body):
     prob = prepare_state(setup.model, design, on, setup.solver)  # checked independently of the solver
     _, grad, _ = prob.evaluate(torch.as_tensor(r.x), order=1)
     assert prob.residual(grad) <= setup.solver.tol
+
+
+def test_settle_cools_the_exchange_at_the_target():
+    """With ``settle = 1`` the design of iteration i adds at most ar_max 2^-k of the faces,
+    k the iterations before it at the target (ar_max on the way there)."""
+    import dataclasses
+    import math
+
+    setup, _ = _sheet_setup(max_iterations=20, target=0.4)
+    setup = dataclasses.replace(setup, params=dataclasses.replace(setup.params, settle=1, tol=1e-12))
+    st = run_loop(setup, initial_state(setup))
+    p, m = setup.params, len(st.design)
+    ks = []
+    for i in range(1, len(st.designs)):
+        k = sum(1 for r in st.metrics[:i] if p.reached(r["area"]))
+        added = int((st.designs[i] & ~st.designs[i - 1]).sum())
+        assert added <= math.floor(p.ar_max * 0.5 ** k * m), (i, k, added)
+        ks.append(k)
+    assert ks[-1] >= 6  # the run spent long enough at the target to cool down to no exchange
+    assert not (st.designs[-1] ^ st.designs[-2]).any()

@@ -46,7 +46,7 @@ TARGET_MARGIN = 0.005
 DESIGN_RANGES = {"target_area": (0.01, 1.0), "er": (1e-4, 0.5), "ar_max": (1e-4, 1.0), "radius": (1e-4, 1.0),
                  "tol": (1e-12, 1.0), "window": (1, 100), "max_iterations": (1, 100000),
                  "protect_clutch_margin": (0.0, 0.2), "lockout": (0.0, 10.0),
-                 "balance": (0.0, 10.0), "guard": (0.0, 0.95)}
+                 "balance": (0.0, 10.0), "guard": (0.0, 0.95), "settle": (0, 1000)}
 SOLVER_RANGES = {"tol": (1e-14, 1.0), "evolution_tol": (1e-14, 1.0), "max_iter": (1, 100000), "workers": (0, 256)}
 SUBDIVISIONS = (0, 1, 2, 3)
 ROTATION_DEGREES = (-180.0, 180.0)  # a motion's rotation of one bone, degrees

@@ -24,6 +24,7 @@ __all__ = [
     "one_ring_filter",
     "radius_filter",
     "sensitivity_factor",
+    "settled_ar",
     "update_design",
 ]
 
@@ -86,15 +87,24 @@ def next_target(current: float, params: BesoParams) -> float:
     return min(params.target_area, current * (1.0 + params.er))
 
 
+def settled_ar(params: BesoParams, at_target: int) -> float:
+    """The share of faces that may be added in the next update after ``at_target``
+    iterations at the target area: ``ar_max`` until the target, then halved every
+    ``settle`` iterations there (``ar_max`` with ``settle = 0``)."""
+    if params.settle <= 0 or at_target <= 0:
+        return params.ar_max
+    return params.ar_max * 0.5 ** (at_target / params.settle)
+
+
 def update_design(x: np.ndarray, alpha: np.ndarray, areas: np.ndarray, target: float,
-                  params: BesoParams) -> np.ndarray:
+                  params: BesoParams, ar: float | None = None) -> np.ndarray:
     """One BESO add/remove step.
 
     x : (m,) current design in {x_min, 1}; alpha : (m,) filtered sensitivities (higher =
     more useful as reinforcement); areas : (m,) m^2; target : reinforced area fraction for
     the next design. Faces are ranked by alpha and thresholded at the target area; at most
-    ``ar_max`` of the faces are added, and then removals are adjusted so that the target
-    area is met. Returns the new (m,) design.
+    ``ar`` (default ``params.ar_max``) of the faces are added, and then removals are
+    adjusted so that the target area is met. Returns the new (m,) design.
     """
     solid = x > 0.5
     total = areas.sum()
@@ -105,7 +115,7 @@ def update_design(x: np.ndarray, alpha: np.ndarray, areas: np.ndarray, target: f
     new_solid = np.zeros_like(solid)
     new_solid[order[:k]] = True
     added = new_solid & ~solid
-    max_add = int(np.floor(params.ar_max * len(x)))
+    max_add = int(np.floor((params.ar_max if ar is None else ar) * len(x)))
     if added.sum() > max_add:
         # keep only the best max_add additions, then fill the target with the best
         # currently-solid faces (i.e. remove the worst solid ones)

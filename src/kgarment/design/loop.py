@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kgarment.design.beso import converged, design_values, next_target, update_design
+from kgarment.design.beso import converged, design_values, next_target, settled_ar, update_design
 from kgarment.design.connect import connect_design
 from kgarment.design.evaluate import pick_equilibrium
 from kgarment.design.guard import REJECTED, TERM, boosted, guard_step, last_accepted, terms_of
@@ -259,7 +259,8 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
         if not rejected:
             target = next_target(st.target, p)
         rank = boosted(alpha, guarded)
-        design = update_design(base, rank, setup.areas, target, p)
+        at_target = sum(1 for r in st.metrics + (row,) if p.reached(r["area"]))
+        design = update_design(base, rank, setup.areas, target, p, settled_ar(p, at_target))
         if p.connected and setup.ends:
             design = design_values(connect_design(design > 0.5, alpha, setup.areas, target, setup.adjacency,
                                                   setup.end_faces, setup.attached, setup.loop_faces, guarded))

@@ -103,6 +103,10 @@ class BesoParams:
     max_iterations : hard stop.
     connected : repair every update into one part holding every clutch end
     (:mod:`kgarment.design.connect`); False is the paper's plain BESO.
+    settle : once the target area is reached, the faces that may be added per iteration
+    halve every ``settle`` iterations at the target (``ar_max`` 2^(-k / settle) after k),
+    so that the exchange cools down and the run settles (0: off, the paper's BESO;
+    :func:`kgarment.design.beso.settled_ar`).
 
     The material interpolation (``p``, ``x_min``) is the simulator's
     (:data:`kgarment.constants.PENALTY`, :data:`kgarment.constants.X_MIN`).
@@ -118,6 +122,7 @@ class BesoParams:
     window: int = C.WINDOW
     max_iterations: int = C.MAX_ITERATIONS
     connected: bool = True
+    settle: int = 0
 
     def reached(self, area: float) -> bool:
         """Whether the reinforced area share ``area`` is at A* (:func:`kgarment.constants.target_reached`)."""
@@ -158,6 +163,8 @@ class DesignSpec:
     def flat(self) -> dict:
         """The [design] table as written in a problem file (BESO fields flattened)."""
         out = {"objective": self.objective, **asdict(self.beso)}
+        if not self.beso.settle:  # written only when used: problem files and hashes of earlier runs stay
+            del out["settle"]
         out.update(protect_attachments=self.protect_attachments, protect_clutch_margin=self.protect_clutch_margin,
                    lockout=self.lockout)
         if self.balance:  # written only when used: problem files and hashes of earlier runs stay as they were
