@@ -42,6 +42,17 @@ def targets(doc: dict) -> list[str]:
             "state to another (the sleeve turns about the arm until its clutch lies over the elbow's axis) and "
             "BESO then cuts the idle path; `[design] guard` takes such steps back (the multi-motion sleeves and "
             "arms forward use it).",
+            "- At the target area the paper's BESO keeps exchanging faces, and on a frictionless body the exchange "
+            "can swing for ever between equilibria (the arm-flexion sleeve climbs, turns about the arm and "
+            "collapses, again and again); `[design] settle` halves the faces added every few iterations at the "
+            "target (arm flexion and arms forward use it) and each run reports its best iteration there.",
+            "- Every clutch loaded against the diagonal: the single-motion arms-forward design must load the V "
+            "clutches in arms forward, a motion that pulls across the upper back; the routes through the V cost "
+            "it rho ON that the designs for bend forward or all three motions (which load the V in arms raise, "
+            "or not at all in arms forward) keep.",
+            "- The manual baseline of a one-clutch sleeve is a strip from each clutch end to the sleeve's nearest "
+            "attachment ring, widened to the budget: for arm extension that is nearly the load path BESO finds, so ours can "
+            "match it but not beat it 1.5-fold.",
             "- Bend forward moves the arms too (the reference amounts: shoulder flexion and elbow), so the arm-band "
             "path through the upper back clutch carries most of it.",
             "- Preview resolution: 18 mm edges and doubled BESO steps; `--resolution default` is the comparison "
