@@ -79,8 +79,8 @@ def test_a_rejected_step_is_made_again_from_the_last_accepted_design(tmp_path):
     assert not any(r["rejected"] for r in st.metrics)  # the real run's steps are all accepted
     assert st.metrics[-1]["term[pull]"] >= GUARD_FLOOR
     solved = solve(setup, st)
-    filt = sensitivities(setup, st, solved)
     row = metrics_row(setup, st, solved, st.reference, st.reference_stored)
+    filt = sensitivities(setup, st, solved)
     row["term[pull]"] = 0.1 * st.metrics[-1]["term[pull]"]  # as if the step broke the load path
     nxt = advance(setup, st, solved, filt, row, st.reference, st.reference_stored)
     assert row["rejected"] == "pull" and math.isnan(nxt.objectives[-1])

@@ -7,10 +7,12 @@ One iteration (:func:`iterate`) is four steps, each a function of the frozen
    from the previous iteration's equilibria (the last converged one per state; see
    ``WARM_MAX_RESIDUAL``) and, with ``skin_start``, also from the skin-tight garment (the
    lower-energy equilibrium kept) -> :class:`Solved` (equilibria, stored energies);
-2. :func:`sensitivities`: element energy densities -> sensitivities, combined by the
-   objective, filtered, averaged with the previous iteration's;
-3. :func:`metrics_row`: the iteration's metrics (area, objective, rho per state, islands,
-   clutch ends, the tension each clutch carries in each ON state, solver effort);
+2. :func:`metrics_row`: the iteration's metrics (area, objective and each motion's term
+   of it, rho per state, islands, clutch ends, the tension each clutch carries in each ON
+   state, solver effort);
+3. :func:`sensitivities`: element energy densities -> sensitivities, combined by the
+   objective (the motions weighted by ``[design] combine`` from the row's terms, once per
+   iteration: :func:`combine_weights`), filtered, averaged with the previous iteration's;
 4. :func:`advance`: the next state (a new design towards the next target area, repaired
    into one part holding every clutch end unless ``connected`` is off, or done); with
    ``[design] guard``, a step that broke a motion's load path is taken back
@@ -152,26 +154,15 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
                   [r.name for r in results if not r.converged], energy, stored, alpha)
 
 
-def weights(setup: DesignSetup, solved: Solved, reference: dict[StateKey, float]) -> dict[str, float] | None:
-    """The motions' weights of ``[design] combine`` (:func:`kgarment.design.objective.motion_weights`)."""
-    if setup.combine == "sum":
-        return None
-    return motion_weights(setup.combine, objective_terms(setup.objective, solved.energy, reference,
-                                                         list(setup.motions), setup.lockout, setup.balance))
-
-
 def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved,
-                  reference: dict[StateKey, float] | None = None) -> np.ndarray:
-    """Step 2: (m,) filtered sensitivities of this iteration (higher = more useful as
-    reinforcement): combined by the objective (the motions weighted by ``[design] combine``
-    against the ``reference`` energies), filtered, averaged with the previous iteration's;
+                  weights: dict[str, float] | None = None) -> np.ndarray:
+    """Step 3: (m,) filtered sensitivities of this iteration (higher = more useful as
+    reinforcement): combined by the objective (each motion's scaled by ``weights``, from
+    :func:`combine_weights`; None: 1), filtered, averaged with the previous iteration's;
     the previous ones when a state did not converge (not twice in a row); protected faces
     on top."""
-    if reference is None:  # iteration 0 is its own reference
-        reference = st.reference or solved.energy
-    w = weights(setup, solved, reference)
     filt = setup.filter_matrix @ combine_sensitivities(setup.objective, solved.alpha, list(setup.motions),
-                                                         setup.lockout, setup.balance, solved.energy, w)
+                                                         setup.lockout, setup.balance, solved.energy, weights)
     if setup.params.history and st.alpha_prev is not None:
         filt = 0.5 * (filt + st.alpha_prev)
     bad = solved.unconverged
@@ -191,9 +182,15 @@ def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved,
     return filt
 
 
+def combine_weights(setup: DesignSetup, row: dict) -> dict[str, float] | None:
+    """The motions' weights of ``[design] combine`` from the terms in this iteration's
+    metrics ``row`` (:func:`kgarment.design.objective.motion_weights`; None for "sum")."""
+    return motion_weights(setup.combine, terms_of(row))
+
+
 def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: dict[StateKey, float],
                 reference_stored: dict[StateKey, Stored]) -> dict:
-    """Step 3: the metrics of this iteration (``seconds`` is filled in by :func:`iterate`)."""
+    """Step 2: the metrics of this iteration (``seconds`` is filled in by :func:`iterate`)."""
     areas, design = setup.areas, st.design
     frac = float(areas[design > 0.5].sum() / areas.sum())
     terms = objective_terms(setup.objective, solved.energy, reference, list(setup.motions), setup.lockout,
@@ -245,7 +242,7 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
                                        st.target, st.accepted_alpha)
     if setup.guard > 0 and not rejected and not solved.unconverged:
         accepted = motion_sensitivities(setup.objective, solved.alpha, list(setup.motions), setup.lockout,
-                                        setup.balance, solved.energy, weights(setup, solved, reference))
+                                        setup.balance, solved.energy, combine_weights(setup, row))
     row[REJECTED] = ",".join(rejected)
     counts = not (solved.unconverged or solved.coarse or rejected)  # NaN: no convergence judged on it
     objectives = st.objectives + (row["objective"] if counts else float("nan"),)
@@ -279,8 +276,8 @@ def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
     solved = solve(setup, st)
     reference, reference_stored = (solved.energy, solved.stored) if st.iteration == 0 else \
         (st.reference, st.reference_stored)
-    filt = sensitivities(setup, st, solved, reference)
     row = metrics_row(setup, st, solved, reference, reference_stored)
+    filt = sensitivities(setup, st, solved, combine_weights(setup, row))
     nxt = advance(setup, st, solved, filt, row, reference, reference_stored)
     row["seconds"] = time.time() - t0
     log.debug("iteration %d: %s", row["iteration"], row)
