@@ -8,6 +8,8 @@ evaluation tolerance all read them from here.
 
 from __future__ import annotations
 
+import re
+
 # ----- design variable (method.md section 6) ------------------------------------------------
 X_MIN = 1e-3      # soft-kill minimum: the design value of plain cloth
 PENALTY = 1.6     # material interpolation exponent p: Y(d) = d^p Y1 + (1 - d^p) Y0
@@ -49,6 +51,8 @@ DESIGN_RANGES = {"target_area": (0.01, 1.0), "er": (1e-4, 0.5), "ar_max": (1e-4,
                  "balance": (0.0, 10.0), "guard": (0.0, 0.95), "settle": (0, 1000)}
 SOLVER_RANGES = {"tol": (1e-14, 1.0), "evolution_tol": (1e-14, 1.0), "max_iter": (1, 100000), "workers": (0, 256)}
 SUBDIVISIONS = (0, 1, 2, 3)
+BODY_NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}")  # a wearer of a multi-body design ([body] phenotypes)
+BODY_SEP = "@"  # a multi-body design's motions are MOTION@BODY
 ROTATION_DEGREES = (-180.0, 180.0)  # a motion's rotation of one bone, degrees
 BUDGET_RANGE = DESIGN_RANGES["target_area"]   # the studio's budget slider
 

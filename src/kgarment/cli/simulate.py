@@ -35,14 +35,16 @@ def cmd_simulate(args) -> int:
           f"clutches {p.clutch_spec().hardware.model}")
     hold = ev.setup.model.holding(g)
     for ((m, _), state), r in zip(keyed, results):
-        files = write_equilibrium(out, m, body.vertices(m), body.faces, ev.setup.model, r, g,
+        w = ev.setup.wearers.get(m)  # a multi-body problem's: this wearer's body and garment
+        on, pose, model = (body, m, ev.setup.model) if w is None else (w.body, w.motion, w.model)
+        files = write_equilibrium(out, m, on.vertices(pose), on.faces, model, r, g,
                                   f"{garment.name} - {m} - clutches {args.clutches}")
         c = r.convergence
         terms = ", ".join(f"{k} {v:.3g}" for k, v in r.energy.items())
         print(f"{m}: {'converged' if c.converged else 'NOT CONVERGED'} in {c.iterations} iterations, "
               f"{c.wall_time:.1f} s; energy {r.total_energy:.4g} J ({terms})")
         if ev.setup.n_clutches:
-            tension = clutch_tensions(ev.setup.model, design, state, r.x)
+            tension = clutch_tensions(model, design, state, r.x)
             print("  clutch tension: " + ", ".join(
                 f"{c.name} {t:.1f} N" + (f" (holds {h:.0f} N{', slips' if slides(t, h) else ''})"
                                          if np.isfinite(h) else "")

@@ -25,7 +25,7 @@ import numpy as np
 
 from kgarment.constants import UNCONTROLLABLE
 from kgarment.design.setup import DesignSetup
-from kgarment.sim import SimState, solve_states
+from kgarment.sim import SimState
 
 log = logging.getLogger(__name__)
 
@@ -71,8 +71,7 @@ def control_check(setup: DesignSetup, warm: dict[str, np.ndarray] | None = None)
         return []
     warm = warm or {}
     states = [s for _, s in keyed]
-    full = solve_states(setup.model, np.ones(len(setup.areas)), states, warm_start=[warm.get(s.name) for s in states],
-                        options=setup.solver)
+    full = setup.solve(np.ones(len(setup.areas)), states, warm_start=[warm.get(s.name) for s in states])
     energy = {k: r.total_energy for (k, _), r in zip(keyed, full)}
     names = [c.name for c in setup.model.clutches]
 
@@ -91,7 +90,7 @@ def clutch_control(setup: DesignSetup, names: list[str]) -> list[Control]:
     for motion, m in setup.motions.items():
         states = [SimState.create(m, np.zeros(k), name=f"{motion}[off]")]
         states += [SimState.create(m, np.eye(k)[j], name=f"{motion}[only {names[j]}]") for j in range(k)]
-        full = solve_states(setup.model, np.ones(len(setup.areas)), states, options=setup.solver)
+        full = setup.solve(np.ones(len(setup.areas)), states)
         out += [Control(motion, full[j + 1].total_energy, full[0].total_energy, names[j]) for j in range(k)]
     return out
 

@@ -34,7 +34,7 @@ from kgarment.design.metrics import Stored, clutch_end_support, islands, relativ
 from kgarment.design.setup import DesignSetup, StateKey, setup_from_problem
 from kgarment.errors import Cancelled, KgarmentError, unknown
 from kgarment.problem import Problem, build_body, build_clutches, build_garment
-from kgarment.sim import SimState, StateResult, solve_states
+from kgarment.sim import SimState, StateResult
 
 log = logging.getLogger(__name__)
 CONTINUATION = (0.0, 0.25, 0.5, 0.75, 1.0)
@@ -171,11 +171,18 @@ class Evaluator:
         return self.setup.model.n_faces
 
     def motion_names(self, motions=None) -> list[str]:
-        """``motions`` (default: all of the setup's), each checked to be one of them."""
-        missing = [m for m in motions or () if m not in self.setup.motions]
-        if missing:
-            raise unknown("motion", missing[0], self.setup.motions)
-        return list(motions or self.setup.motions)
+        """``motions`` (default: all of the setup's), each checked to be one of them; in a
+        multi-body design a problem's motion name stands for it on every wearer."""
+        out = []
+        for m in motions or self.setup.motions:
+            if m in self.setup.motions:
+                out.append(m)
+                continue
+            on_wearers = [k for k, w in self.setup.wearers.items() if w.motion == m]
+            if not on_wearers:
+                raise unknown("motion", m, self.setup.motions)
+            out += on_wearers
+        return list(dict.fromkeys(out))
 
     def keyed(self, motions=None) -> list[tuple[StateKey, SimState]]:
         """The states of the objective for ``motions`` (default: all)."""
@@ -195,8 +202,7 @@ class Evaluator:
         """The fully reinforced garment's equilibria in ``keyed`` states (solved once each)."""
         todo = [(k, s) for k, s in keyed if k not in self._reference]
         if todo:
-            done = solve_states(self.setup.model, np.ones(self.n_faces), [s for _, s in todo],
-                                options=self.setup.solver)
+            done = self.setup.solve(np.ones(self.n_faces), [s for _, s in todo])
             self._reference.update({k: r for (k, _), r in zip(todo, done)})
         return [self._reference[k] for k, _ in keyed]
 
@@ -213,8 +219,7 @@ class Evaluator:
         starts = [r.x for r in self.reference(keyed)] if starts is None else list(starts)
         # both starts in one batch: the workers share 2n solves instead of waiting twice for the slowest
         skin = [dataclasses.replace(s, name=f"{s.name}@skin-tight") for s in states]
-        both = solve_states(setup.model, design, skin + states, warm_start=[None] * len(states) + starts,
-                            options=setup.solver)
+        both = setup.solve(design, skin + states, warm_start=[None] * len(states) + starts)
         cold = [dataclasses.replace(r, name=s.name) for r, s in zip(both[:len(states)], states)]
         out = [pick_equilibrium(a, b) for a, b in zip(cold, both[len(states):])]
         for i, e in enumerate(out):
@@ -276,9 +281,10 @@ class Evaluator:
         rows = []
         for ((motion, state), _), (rf, eq) in zip(keyed, pairs):
             sf, sd = Stored.of(rf, clutched), Stored.of(eq.result, clutched)
-            rho = relative_energy_density(design, setup.areas, sd, sf, setup.clutch_area)
+            areas, c_area = setup.areas_of(motion), setup.clutch_area_of(motion)
+            rho = relative_energy_density(design, areas, sd, sf, c_area)
             other = None if eq.other is None else \
-                relative_energy_density(design, setup.areas, Stored.of(eq.other, clutched), sf, setup.clutch_area)
+                relative_energy_density(design, areas, Stored.of(eq.other, clutched), sf, c_area)
             rows.append(StateEvaluation(
                 motion, state, rho, float(sd.face_energy[solid].sum() + sd.clutch_energy),
                 float(sf.face_energy.sum() + sf.clutch_energy), bool(rf.converged and eq.result.converged), other,
@@ -308,8 +314,7 @@ def activation_continuation(setup: DesignSetup, design: np.ndarray, state: SimSt
     x, iters, secs, r = None, 0, 0.0, None
     for k, f in enumerate(CONTINUATION):
         step = state if f == 1.0 else SimState.create(state.motion, f * g, name=f"{state.name}@{f:g}")
-        r = solve_states(setup.model, design, [step], warm_start=None if x is None else [x],
-                         options=setup.solver)[0]
+        r = setup.solve(design, [step], warm_start=None if x is None else [x])[0]
         iters += r.convergence.iterations
         secs += r.convergence.wall_time
         if not r.converged and k < len(CONTINUATION) - 1:

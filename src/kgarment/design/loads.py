@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from kgarment.constants import LOAD_TOL, LOADED_SHARE, MIN_GAIN
-from kgarment.sim import StateResult, clutch_tensions, solve_states
+from kgarment.sim import StateResult, clutch_tensions
 from kgarment.sim.slip import slides
 
 
@@ -167,8 +167,8 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     go through the evaluator's two starts."""
     setup = evaluator.setup
     opts = dataclasses.replace(setup.solver, tol=max(setup.solver.tol, LOAD_TOL))
-    solved = solve_states(setup.model, design, [st for _, st in keyed],
-                          warm_start=[known[(key[0], "on")].x for key, _ in keyed], options=opts)
+    solved = setup.solve(design, [st for _, st in keyed], warm_start=[known[(key[0], "on")].x for key, _ in keyed],
+                         options=opts)
     out = {key: r for (key, _), r in zip(keyed, solved) if r.converged}
     retry = [(key, st) for key, st in keyed if key not in out]
     if retry:
@@ -183,8 +183,7 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
     StateResult} equilibria already solved (by :meth:`Evaluator.evaluate`), reused.
     """
     setup = evaluator.setup
-    model = setup.model
-    names = [c.name for c in model.clutches]
+    names = [c.name for c in setup.model.clutches]
     motions = evaluator.motion_names(motions)
     ends, known = on_off_equilibria(evaluator, design, motions, known)
     alone, without, todo = {}, {}, []
@@ -205,9 +204,9 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
         on: StateResult = known[(m, "on")]
         e_on, e_off = on.total_energy, known[(m, "off")].total_energy
         garment.append(MotionEnergy(m, e_on, e_off))
-        tension = clutch_tensions(model, design, states[(m, "on")], on.x, setup.solver)
+        tension = clutch_tensions(setup.model_of(m), design, states[(m, "on")], on.x, setup.solver)
         gain = e_on - e_off
-        hold = model.holding(setup.on_activation(m))
+        hold = setup.model_of(m).holding(setup.on_activation(m))
         for k, name in enumerate(names):
             share = needed = float("nan")
             if gain > MIN_GAIN * abs(e_off):

@@ -55,7 +55,6 @@ from kgarment.sim import (
     StateResult,
     clutch_tensions,
     log_stiffness_derivative,
-    solve_states,
 )
 
 log = logging.getLogger(__name__)
@@ -138,10 +137,9 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     keyed = setup.states()
     states = [s for _, s in keyed]
     opts = setup.options(st.iteration, st.target)
-    results = solve_states(setup.model, st.design, states, warm_start=[st.warm.get(s.name) for s in states],
-                           options=opts)
+    results = setup.solve(st.design, states, warm_start=[st.warm.get(s.name) for s in states], options=opts)
     if setup.skin_start and st.warm:
-        cold = solve_states(setup.model, st.design, states, options=opts)
+        cold = setup.solve(st.design, states, options=opts)
         results = [pick_equilibrium(w, c).result for w, c in zip(results, cold)]
     factor = log_stiffness_derivative(st.design, setup.model.preset) / setup.model.preset.penal
     alpha, energy, stored = {}, {}, {}
@@ -208,8 +206,9 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
         "solver_tol": solved.options.tol,
     }
     row.update({TERM.format(m): v for m, v in terms.items()})
-    row.update({f"rho[{k[0]}:{k[1]}]": relative_energy_density(design, areas, solved.stored[k], reference_stored[k],
-                                                               setup.clutch_area) for k in solved.stored})
+    row.update({f"rho[{k[0]}:{k[1]}]": relative_energy_density(design, setup.areas_of(k[0]), solved.stored[k],
+                                                               reference_stored[k], setup.clutch_area_of(k[0]))
+                for k in solved.stored})
     row.update({f"energy[{k[0]}:{k[1]}]": v for k, v in solved.energy.items()})
     row.update(tension_columns(setup, st.design, solved))
     return row
@@ -222,7 +221,7 @@ def tension_columns(setup: DesignSetup, design: np.ndarray, solved: Solved) -> d
     names = [c.name for c in setup.model.clutches]
     for key, state, r in zip(solved.keys, solved.states, solved.results):
         if key[1] == "on" and names:
-            t = clutch_tensions(setup.model, design, state, r.x, solved.options)
+            t = clutch_tensions(setup.model_of(key[0]), design, state, r.x, solved.options)
             out.update({f"tension[{key[0]}:{n}]": float(v) for n, v in zip(names, t)})
     return out
 

@@ -171,6 +171,9 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
     """
     setup = evaluator.setup
     model = setup.model
+    if setup.wearers:
+        raise KgarmentError("--path: the force over the motion is solved on one body; a multi-body design's "
+                            "wearers are evaluated at their target poses only (evaluate without --path)")
     motions = evaluator.motion_names(motions)
     sim_motions, index = frame_motions(problem, motions, frames)
     first = next(iter(sim_motions.values()))

@@ -190,7 +190,7 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
         for idx in chosen:
             label = _label(names[i] for i in idx)
             r = known[(m, label)]
-            t = clutch_tensions(setup.model, design, states[(m, label)], r.x, setup.solver)
+            t = clutch_tensions(setup.model_of(m), design, states[(m, label)], r.x, setup.solver)
             res = r.total_energy - off.total_energy
             frac = res / gain if gain > MIN_GAIN * abs(off.total_energy) else float("nan")
             results.append(SetResult(m, tuple(names[i] for i in idx), float(r.total_energy), float(res), float(frac),

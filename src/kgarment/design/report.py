@@ -11,7 +11,6 @@ from kgarment.design.beso import design_values
 from kgarment.design.run import progress_plot
 from kgarment.io import atomic_save_npz, atomic_write_bytes, atomic_write_text, write_ply
 from kgarment.render import render_design, render_scene
-from kgarment.sim import solve_states
 
 log = logging.getLogger(__name__)
 REINFORCED = (0.15, 0.20, 0.45, 1.0)
@@ -54,18 +53,19 @@ def finish_run(run: Path, setup, st, body, garment, strips, iteration: int, equi
     keyed = setup.states()
     if equilibria is None or any(k not in equilibria for k, _ in keyed):
         states = [s for _, s in keyed]
-        solved = solve_states(setup.model, design, states, warm_start=[st.warm.get(s.name) for s in states],
-                              options=setup.solver)
+        solved = setup.solve(design, states, warm_start=[st.warm.get(s.name) for s in states])
         equilibria = {k: r for (k, _), r in zip(keyed, solved)}
     vmax = {}
     for (motion, _), r in equilibria.items():
         vmax[motion] = max(vmax.get(motion, 0.0), float(np.percentile(r.garment_density, 99)))
     for key, s in keyed:
         r = equilibria[key]
-        gx, cx = setup.model.split(r.x)
-        paths.append(render_scene(final / f"energy_{key[0]}_{key[1].replace(':', '-')}.png", body.vertices(key[0]), body.faces, gx,
-                                  garment.faces, face_values=r.garment_density, vmin=0.0, vmax=vmax[key[0]],
-                                  clutches=[(x, c.faces) for c, x in zip(setup.model.clutches, cx)],
+        w = setup.wearers.get(key[0])  # a multi-body design's: this motion's body and garment
+        on, pose, model = (body, key[0], setup.model) if w is None else (w.body, w.motion, w.model)
+        gx, cx = model.split(r.x)
+        paths.append(render_scene(final / f"energy_{key[0]}_{key[1].replace(':', '-')}.png", on.vertices(pose),
+                                  on.faces, gx, garment.faces, face_values=r.garment_density, vmin=0.0,
+                                  vmax=vmax[key[0]], clutches=[(x, c.faces) for c, x in zip(model.clutches, cx)],
                                   clutch_activation=s.activation, value_label="energy density (J/m^2)",
                                   title=f"{garment.name}: {key[0]}, clutches {_state_title(key[1])}"))
     return paths

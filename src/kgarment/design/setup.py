@@ -19,7 +19,7 @@ from kgarment.errors import KgarmentError
 from kgarment.garment import Garment
 from kgarment.garment.topology import boundary_loops, face_adjacency, triangle_areas
 from kgarment.problem import BesoParams, Problem, build_model, solver_options
-from kgarment.sim import Motion, SimModel, SimState, SolverOptions, garment_motions
+from kgarment.sim import Motion, SimModel, SimState, SolverOptions, garment_motions, solve_states
 
 StateKey = tuple[str, str]  # (motion, "on" | "off" | "none" | "lock:OTHER MOTION" | "solo:CLUTCH")
 LOCK = "lock:"  # state label prefix: a motion under another motion's activation set
@@ -35,6 +35,25 @@ class ClutchEnds:
 
     a: np.ndarray
     b: np.ndarray
+
+
+@dataclass(frozen=True)
+class Wearer:
+    """One body of a multi-body design (``[body] phenotypes``) for one of its motions.
+
+    name : the wearer's name;  motion : the problem's motion name (the setup's is
+    ``MOTION@NAME``);  model : SimModel of the garment on this body (same faces, this body's
+    rest shape, the clutches at the same spots);  areas : (m,) rest face areas on this body,
+    m^2;  clutch_area : total rest area of its clutches, m^2 (0 for the passive objective);
+    body : the kgarment Body, posed in the motions (renders).
+    """
+
+    name: str
+    motion: str
+    model: SimModel = field(repr=False)
+    areas: np.ndarray = field(repr=False)
+    clutch_area: float
+    body: object = field(repr=False, default=None)
 
 
 @dataclass(frozen=True)
@@ -58,7 +77,8 @@ class DesignSetup:
     balance : weight of the reward for each clutch of a motion's set carrying load on its
     own (the active objective's ``solo:`` states);  guard : the step guard's share
     (:mod:`kgarment.design.guard`; 0: off);  combine : "sum" or "product" of the motions'
-    terms (:mod:`kgarment.design.objective`).
+    terms (:mod:`kgarment.design.objective`);  wearers : {motion: Wearer} of a multi-body
+    design (every motion ``MOTION@BODY``; {} for one body: ``model`` and ``areas`` serve all).
     """
 
     model: SimModel
@@ -81,14 +101,17 @@ class DesignSetup:
     balance: float = 0.0
     guard: float = 0.0
     combine: str = "sum"
+    wearers: dict[str, Wearer] = field(default_factory=dict, repr=False)
 
     @classmethod
     def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
               solver: SolverOptions, evolution_solver: SolverOptions | None = None,
               protected: np.ndarray | None = None, skin_start: bool = False,
               activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0,
-              balance: float = 0.0, guard: float = 0.0, combine: str = "sum") -> DesignSetup:
-        """Precompute areas, filter, adjacency and clutch ends for ``model``."""
+              balance: float = 0.0, guard: float = 0.0, combine: str = "sum",
+              wearers: dict[str, Wearer] | None = None) -> DesignSetup:
+        """Precompute areas, filter, adjacency and clutch ends for ``model`` (the garment on
+        the body it is cut from; ``wearers``: a multi-body design's, see the class doc)."""
         X, F = model.garment_rest, model.garment_faces
         areas = triangle_areas(X, F)
         if params.filter == "radius":
@@ -108,7 +131,28 @@ class DesignSetup:
                    face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0,
                    attached.astype(np.int64), loops, skin_start,
                    {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout),
-                   float(balance), float(guard), combine)
+                   float(balance), float(guard), combine, dict(wearers or {}))
+
+    def model_of(self, motion: str) -> SimModel:
+        """The SimModel ``motion`` is solved on (its wearer's garment)."""
+        w = self.wearers.get(motion)
+        return self.model if w is None else w.model
+
+    def areas_of(self, motion: str) -> np.ndarray:
+        """(m,) rest face areas of ``motion``'s wearer, m^2 (rho's normalisation)."""
+        w = self.wearers.get(motion)
+        return self.areas if w is None else w.areas
+
+    def clutch_area_of(self, motion: str) -> float:
+        w = self.wearers.get(motion)
+        return self.clutch_area if w is None else w.clutch_area
+
+    def solve(self, design: np.ndarray, states, warm_start=None, options: SolverOptions | None = None) -> list:
+        """:func:`kgarment.sim.solve_states` of ``states`` (SimState list; warm_start and
+        options as there, options default ``self.solver``), each on its motion's wearer's model."""
+        models = [self.model_of(s.motion.name) for s in states]
+        return solve_states(models if self.wearers else self.model, design, states, warm_start=warm_start,
+                            options=self.solver if options is None else options)
 
     @property
     def n_clutches(self) -> int:
@@ -143,12 +187,16 @@ class DesignSetup:
                 own = self.on_activation(name)
                 for other in self.motions:
                     g = self.on_activation(other)
-                    if other != name and not np.array_equal(g, own):
+                    if other != name and not np.array_equal(g, own) and self._same_wearer(name, other):
                         label = f"{LOCK}{other}"
                         out.append(((name, label), SimState.create(self.motions[name], g, name=f"{name}[{label}]")))
             for label, g in self.solo_activations(name):
                 out.append(((name, label), SimState.create(self.motions[name], g, name=f"{name}[{label}]")))
         return out
+
+    def _same_wearer(self, a: str, b: str) -> bool:
+        wa, wb = self.wearers.get(a), self.wearers.get(b)
+        return wa is None or wb is None or wa.name == wb.name
 
     def solo_activations(self, motion: str) -> list[tuple[str, np.ndarray]]:
         """[(``solo:CLUTCH``, (K,) activation)] for the balance reward of ``motion``: each
@@ -173,9 +221,11 @@ class DesignSetup:
 
 
 def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose: str = "design",
-                       device: str = "cpu", objective: str | None = None) -> DesignSetup:
+                       device: str = "cpu", objective: str | None = None, specs=None) -> DesignSetup:
     """The setup of ``problem`` on a built body, garment (its attachments are held) and clutch
-    strips, for the problem's motions.
+    strips, for the problem's motions; with ``[body] phenotypes``, for every wearer's
+    (:mod:`kgarment.design.wearers`; ``specs``: the clutch specs the strips were built from,
+    default the problem's).
 
     purpose : "design" (a run: ``[solver] tol``, and ``evolution_tol`` while the target
     shrinks) or "evaluate" (measuring designs: ``min(tol, EVALUATION_TOL)`` throughout;
@@ -191,11 +241,18 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
         solver, evolution = solver_options(problem, "design", device), solver_options(problem, "evolution", device)
     else:
         solver, evolution = solver_options(problem, "evaluate", device), None
-    return DesignSetup.build(model, garment_motions(body, garment, problem.motions), d.objective, d.beso, solver,
+    motions = garment_motions(body, garment, problem.motions)
+    activation = activation_vectors(problem, [c.name for c in use])
+    wearers = None
+    if problem.body.phenotypes:
+        from kgarment.design.wearers import wearer_motions
+
+        motions, activation, wearers = wearer_motions(problem, body, garment, strips, model, motions, activation,
+                                                      specs)
+    return DesignSetup.build(model, motions, d.objective, d.beso, solver,
                              evolution_solver=evolution,
                              protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin),
-                             skin_start=problem.solver.skin_start,
-                             activation=activation_vectors(problem, [c.name for c in use]),
+                             skin_start=problem.solver.skin_start, activation=activation, wearers=wearers,
                              lockout=d.lockout if d.objective == "active" else 0.0,
                              balance=d.balance if d.objective == "active" else 0.0, guard=d.guard,
                              combine=d.combine if d.objective == "active" else "sum")

@@ -61,6 +61,9 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
     clutches = _clutches(data["clutches"], base) if "clutches" in data else None
     design = _design(data.get("design", {}))
     _check_levels(design.levels, garment.subdivision)
+    if design.levels and body.phenotypes:
+        raise KgarmentError("[design] levels: coarse-to-fine is for one body; a multi-body design ([body] "
+                            "phenotypes) runs at its garment's subdivision (leave levels out)")
     solver = dict(data.get("solver", {}))
     mats = dict(data.get("materials", {}))
     check_keys("materials", mats, ("preset",))
@@ -118,10 +121,16 @@ def _path(base: Path, p, what: str) -> Path:
 
 
 def _body(b: dict, base: Path) -> BodySpec:
-    check_keys("body", b, ("model", "phenotype", "rest", "rig", "motions"))
+    check_keys("body", b, ("model", "phenotype", "phenotypes", "rest", "rig", "motions"))
     model = b.get("model", "anny")
     if model not in ("anny", "meshes"):
         raise unknown("body model", model, ("anny", "meshes"))
+    if "phenotypes" in b:
+        if model != "anny" or "phenotype" in b:
+            raise KgarmentError("[body] phenotypes: a multi-body design is on Anny bodies, given by phenotypes "
+                                "alone (not with phenotype or model = 'meshes')")
+        many = _phenotypes(b["phenotypes"])
+        return BodySpec("anny", many[0][1], phenotypes=many)
     if model == "anny":
         return BodySpec("anny", Phenotype.from_dict(b.get("phenotype", {})))
     if "rest" not in b or "motions" not in b:
@@ -129,6 +138,29 @@ def _body(b: dict, base: Path) -> BodySpec:
     meshes = tuple((k, _path(base, v, f"body.motions.{k}")) for k, v in b["motions"].items())
     return BodySpec("meshes", Phenotype(), _path(base, b["rest"], "body.rest"),
                     _path(base, b["rig"], "body.rig") if "rig" in b else None, meshes)
+
+
+def _phenotypes(v) -> tuple[tuple[str, Phenotype], ...]:
+    """[body] phenotypes = [{name = "S", weight = 0.3, ...}, ...]: two or more wearers, each a
+    name (letters, digits, _ . -; default body1, body2, ...) and phenotype fields."""
+    if not isinstance(v, list) or len(v) < 2 or not all(isinstance(d, dict) for d in v):
+        raise KgarmentError("[body] phenotypes must list two or more tables, e.g. "
+                            "[{name = \"S\", weight = 0.3}, {name = \"L\", weight = 0.8}]")
+    out = []
+    for i, d in enumerate(v):
+        name = d.get("name", f"body{i + 1}")
+        if not isinstance(name, str) or not C.BODY_NAME.fullmatch(name):
+            raise KgarmentError(f"[body] phenotypes[{i}]: name = {name!r}; allowed: letters, digits, _ . - "
+                                f"(at most 32)")
+        try:
+            out.append((name, Phenotype.from_dict({k: x for k, x in d.items() if k != "name"})))
+        except KgarmentError as exc:
+            raise KgarmentError(f"[body] phenotypes[{i}] ({name}): {exc}") from None
+    names = [n for n, _ in out]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise KgarmentError(f"[body] phenotypes: duplicate name {dup[0]!r}; give each wearer its own name")
+    return tuple(out)
 
 
 def _rotation(d, where: str) -> Rotation:
@@ -350,7 +382,9 @@ def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
     reads back to an equal problem; clutches are referenced by ``clutch_file`` when given."""
     b = problem.body
     body: dict = {"model": b.model}
-    if b.model == "anny":
+    if b.phenotypes:
+        body["phenotypes"] = [{"name": n, **asdict(ph)} for n, ph in b.phenotypes]
+    elif b.model == "anny":
         body["phenotype"] = asdict(b.phenotype)
     else:
         body["rest"] = str(Path(b.rest).resolve())
@@ -409,6 +443,8 @@ def override(problem: Problem, *, motions=None, template: str | None = None, sub
         beso = section(BesoParams, "design", beso, {"filter": FILTERS}, C.DESIGN_RANGES)
         changes["design"] = dataclasses.replace(problem.design, beso=beso)
     if refine:  # coarse-to-fine from level 0 (kgarment.design.refine)
+        if problem.body.phenotypes:
+            raise KgarmentError("--refine: coarse-to-fine is for one body, not a multi-body design ([body] phenotypes)")
         d = changes.get("design", problem.design)
         changes["design"] = dataclasses.replace(d, levels=tuple(range(changes["garment"].subdivision)))
     if clutch_model is not None or holding_force is not None:

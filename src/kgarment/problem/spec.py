@@ -23,13 +23,24 @@ METHODS = ("newton", "lbfgs")
 
 @dataclass(frozen=True)
 class BodySpec:
-    """[body]: ``model`` "anny" (with a phenotype) or "meshes" (posed mesh files)."""
+    """[body]: ``model`` "anny" (with a phenotype) or "meshes" (posed mesh files).
+
+    phenotypes : ((name, Phenotype), ...) the wearers of a multi-body design (``[body]
+    phenotypes``; two or more, names unique), the first of which is ``phenotype``: the body
+    the garment is cut from; () for one body.
+    """
 
     model: str = "anny"
     phenotype: Phenotype = field(default_factory=Phenotype)
     rest: Path | None = None
     rig: Path | None = None
     meshes: tuple[tuple[str, Path], ...] = ()
+    phenotypes: tuple[tuple[str, Phenotype], ...] = ()
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The wearers' names (() for one body)."""
+        return tuple(n for n, _ in self.phenotypes)
 
 
 @dataclass(frozen=True)
@@ -267,7 +278,9 @@ class Problem:
     def describe(self) -> str:
         """The resolved problem, in full, for the start of a run."""
         lines = [f"problem: {self.source or '(built-in default)'}", f"body: {self.body.model}"]
-        if self.body.model == "anny":
+        if self.body.phenotypes:
+            lines += [f"  {n}: {asdict(ph)}" for n, ph in self.body.phenotypes]
+        elif self.body.model == "anny":
             lines.append(f"  phenotype: {asdict(self.body.phenotype)}")
         else:
             lines.append(f"  rest: {self.body.rest}; rig: {self.body.rig}")

@@ -84,12 +84,13 @@ def _task(model, design, state, warm, options):
     return solve_serial(model, design, [state], [warm], options)[0]
 
 
-def solve_parallel(model, design, states, warm, options) -> list:
-    """One task per state on ``options.workers`` processes (each single-process)."""
+def solve_parallel(models, design, states, warm, options) -> list:
+    """One task per state on ``options.workers`` processes (each single-process); models :
+    the SimModel of each state."""
     sub = replace(options, workers=1)
     pool = _pool(options.workers)
     order = sorted(range(len(states)), key=lambda i: -_LAST_ITERATIONS.get(states[i].name, 0))
-    futures = {i: pool.submit(_task, model, design, states[i], warm[i], sub) for i in order}
+    futures = {i: pool.submit(_task, models[i], design, states[i], warm[i], sub) for i in order}
     results = [futures[i].result() for i in range(len(states))]
     for s, r in zip(states, results):
         _LAST_ITERATIONS[s.name] = r.convergence.iterations

@@ -28,7 +28,7 @@ class ConvergenceError(SimulationError):
         self.states = states
 
 
-def _warm(warm_start, states: Sequence[SimState], n: int) -> list[np.ndarray | None]:
+def _warm(warm_start, states: Sequence[SimState], sizes: Sequence[int]) -> list[np.ndarray | None]:
     if warm_start is None:
         return [None] * len(states)
     if isinstance(warm_start, Mapping):
@@ -38,7 +38,7 @@ def _warm(warm_start, states: Sequence[SimState], n: int) -> list[np.ndarray | N
         if len(got) != len(states):
             raise ValueError(f"warm_start has {len(got)} entries for {len(states)} states")
     out = []
-    for s, w in zip(states, got):
+    for s, w, n in zip(states, got, sizes):
         if isinstance(w, StateResult):
             w = w.x
         if w is not None:
@@ -49,12 +49,13 @@ def _warm(warm_start, states: Sequence[SimState], n: int) -> list[np.ndarray | N
     return out
 
 
-def solve_states(model: SimModel, design: np.ndarray, states: Sequence[SimState],
+def solve_states(model: SimModel | Sequence[SimModel], design: np.ndarray, states: Sequence[SimState],
                  warm_start: Sequence | Mapping | None = None,
                  options: SolverOptions | None = None) -> list[StateResult]:
     """Equilibrium of every state under one design.
 
-    model : SimModel;  design : (m,) per garment face in [x_min, 1];  states : SimState list
+    model : SimModel, or one per state (the garments of one design on several bodies: same
+    faces, other rest shapes);  design : (m,) per garment face in [x_min, 1];  states : SimState list
     (each a motion + activation (K,));  warm_start : per state (N, 3) positions or
     StateResult or None -- a sequence aligned with ``states`` or a mapping by state name;
     states without one start from the motion's skin-tight garment with bound clutches.
@@ -66,24 +67,39 @@ def solve_states(model: SimModel, design: np.ndarray, states: Sequence[SimState]
     names = [s.name for s in states]
     if len(set(names)) != len(names):
         raise ValueError("state names must be unique")
-    warm = _warm(warm_start, states, model.n_vertices)
+    models = list(model) if isinstance(model, Sequence) else [model] * len(states)
+    if len(models) != len(states):
+        raise ValueError(f"{len(models)} models for {len(states)} states")
+    warm = _warm(warm_start, states, [m.n_vertices for m in models])
     saved_threads = torch.get_num_threads()
     if options.threads is not None:
         torch.set_num_threads(options.threads)
     try:
         with blas_threads(options.threads):
             if options.workers > 1 and len(states) > 1:
-                results = solve_parallel(model, design, states, warm, options)
+                results = solve_parallel(models, design, states, warm, options)
                 for r in results:
                     log.info("state %s: %s in %d iterations, %.3f s (worker)", r.name,
                              "converged" if r.converged else "NOT converged", r.convergence.iterations,
                              r.convergence.wall_time)
             else:
-                results = solve_serial(model, design, states, warm, options)
+                results = _serial(models, design, states, warm, options)
     finally:
         torch.set_num_threads(saved_threads)
     _report(results, options)
     return results
+
+
+def _serial(models: list[SimModel], design, states, warm, options) -> list[StateResult]:
+    """:func:`solve_serial` over runs of consecutive states that share a model."""
+    out, i = [], 0
+    while i < len(states):
+        j = i + 1
+        while j < len(states) and models[j] is models[i]:
+            j += 1
+        out += solve_serial(models[i], design, states[i:j], warm[i:j], options)
+        i = j
+    return out
 
 
 def _report(results: list[StateResult], options: SolverOptions) -> None:

@@ -95,6 +95,11 @@ def build_state(opened: Opened, body: Body | None = None) -> StudioState:
     """The :class:`~kgarment.studio.state.StudioState` of an opened source: builds (or
     reuses ``body``, when it is posed in every motion of the problem) the body and garment."""
     problem = opened.problem
+    if problem.body.phenotypes:
+        raise KgarmentError(f"the studio edits a garment on one body; this problem has {len(problem.body.names)} "
+                            f"wearers ([body] phenotypes: {', '.join(problem.body.names)}): open one wearer's "
+                            "problem ([body] phenotype = {...}), or design and evaluate the size range with "
+                            "kgarment design / sizes / evaluate")
     if body is None or not set(problem.motions) <= set(body.motion_names):
         body = build_body(problem)
     garment = build_garment(problem, body)
