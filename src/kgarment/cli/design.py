@@ -23,6 +23,7 @@ from kgarment.cli.common import (
 from kgarment.errors import KgarmentError
 
 DEMO_EXAMPLE = "shirt_three_motions"
+SIZES_EXAMPLE = "shirt_sizes"
 
 
 def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: bool, evaluate: bool = True) -> int:
@@ -95,6 +96,37 @@ def cmd_demo(args) -> int:
     return run_design(problem, out, resume=resume, force=args.force, device=args.device, quiet=args.quiet)
 
 
+def cmd_sizes(args) -> int:
+    """One design for a size range against one design per size (kgarment.design.sizes)."""
+    from kgarment.design.sizes import run_sizes
+    from kgarment.problem import example_path, load_problem, override
+
+    problem = load(args) if args.problem else override(load_problem(example_path(SIZES_EXAMPLE)),
+                                                          subdivision=args.subdivision,
+                                                          max_iterations=args.max_iterations)
+    if not problem.body.names:
+        raise KgarmentError(f"{args.problem}: kgarment sizes needs a multi-body problem ([body] phenotypes = "
+                            f"[{{name = ...}}, ...], e.g. the example {SIZES_EXAMPLE})")
+    motions = list(problem.motions)
+    print(f"wearers: {', '.join(problem.body.names)}; motions: {', '.join(motions)}; runs in {args.out}/runs")
+    total = expected_iterations(problem.design.beso)
+
+    def progress(name):
+        print(f"design {name}: " + ("every wearer at once" if name == "all" else f"for {name} alone"))
+        return None if args.quiet else (lambda st: print(f"  {name} it {st.metrics[-1]['iteration']:>3}/{total} "
+                                                          f"{rho_line(st.metrics[-1], [])}", flush=True)
+                                         if st.metrics[-1]["iteration"] % 10 == 0 else None)
+
+    try:
+        doc = run_sizes(problem, args.out, device=args.device, force=args.force, progress=progress)
+    except KeyboardInterrupt:
+        print(f"\ninterrupted; run the same command again to continue (finished runs in {args.out}/runs are kept)")
+        return 130
+    print(Path(args.out, "sizes.md").read_text())
+    print(f"wrote {args.out}/sizes.json, sizes.md, sizes.png")
+    return 0 if doc["rows"] else 1
+
+
 def cmd_evaluate(args) -> int:
     import json
 
@@ -111,6 +143,9 @@ def cmd_evaluate(args) -> int:
     src = parse_design_source(args.design, run_required=True)
     p = override(load_problem(src.run / "problem.toml"), motions=args.motion, clutch_model=args.clutch_model,
                  holding_force=args.holding_force)
+    if args.path and p.body.phenotypes:
+        raise KgarmentError("--path: the force over the motion is solved on one body; for a multi-body design "
+                            "([body] phenotypes) leave --path out (each wearer is evaluated at the target pose)")
     if args.phenotype:  # checked before the work
         if p.body.model != "anny":
             raise KgarmentError("--phenotype needs a run on the Anny body (body model 'anny')")
@@ -164,7 +199,7 @@ def evaluate_on_phenotype(args, p, phen, run_body, garment, design) -> dict:
     from kgarment.design.transfer import clutches_on, garment_on
     from kgarment.problem import build_body, clutch_specs
 
-    other = dataclasses.replace(p, body=dataclasses.replace(p.body, phenotype=phen))
+    other = dataclasses.replace(p, body=dataclasses.replace(p.body, phenotype=phen, phenotypes=()))
     body = build_body(other)
     g = garment_on(body, garment)
     strips = clutches_on(clutch_specs(p, run_body), run_body, garment, g)
@@ -189,6 +224,17 @@ def add_parsers(sub) -> None:
                     "starts and the load of every clutch: one more solve per clutch and motion); "
                     "kgarment evaluate RUN does it later")
     sp.set_defaults(func=cmd_design)
+
+    sp = sub.add_parser("sizes", help="one design for a size range ([body] phenotypes) against one design per "
+                        "size: runs both (resumable) and writes sizes.md/json/png")
+    sp.add_argument("problem", nargs="?", help="a multi-body problem file (default: the example shirt_sizes)")
+    add_device(sp)
+    add_overrides(sp, motion=False, garment=False)
+    sp.add_argument("--max-iterations", type=MAX_ITERATIONS, help="stop each design after this many iterations")
+    sp.add_argument("--out", default="runs/sizes", help="folder (default runs/sizes): runs/all, runs/<wearer>, "
+                    "sizes.md, sizes.json, sizes.png")
+    sp.add_argument("--force", action="store_true", help="run every design again (replacing its run folder)")
+    sp.set_defaults(func=cmd_sizes)
 
     sp = sub.add_parser("evaluate", help="evaluate a design (any iteration of a run) on any motions: rho ON/OFF, "
                         "islands, clutch ends, and the load each clutch carries")
