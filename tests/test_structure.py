@@ -28,7 +28,7 @@ STAGES = (
     ("kgarment.problem",),
     ("kgarment.design",),
     ("kgarment.fabricate",),
-    ("kgarment.reproduce", "kgarment.studio"),
+    ("kgarment.reproduce", "kgarment.studio", "kgarment.sweep"),
     ("kgarment.cli",),
 )
 MAX_LINES = 500

@@ -2,7 +2,7 @@
 
 One module per command group (``inputs``: motions, garments, render, clutches, examples;
 ``simulate``; ``design``: design, evaluate, demo; ``plan``; ``fabricate``; ``reproduce``;
-``studio``) and ``common`` for the shared arguments.  Each command parses its flags,
+``studio``; ``sweep``) and ``common`` for the shared arguments.  Each command parses its flags,
 calls the library and prints; a user error (:class:`~kgarment.errors.KgarmentError`)
 prints one line and exits with status 2.  Commands import the pipeline stages they use
 when they run, so ``kgarment --help`` starts without loading torch.
@@ -15,10 +15,10 @@ import logging
 import sys
 
 from kgarment import __version__
-from kgarment.cli import design, fabricate, inputs, plan, reproduce, simulate, studio
+from kgarment.cli import design, fabricate, inputs, plan, reproduce, simulate, studio, sweep
 from kgarment.errors import KgarmentError
 
-GROUPS = (inputs, simulate, design, plan, fabricate, studio, reproduce)
+GROUPS = (inputs, simulate, design, plan, fabricate, studio, reproduce, sweep)
 QUIET_SOLVER = ("design", "demo", "reproduce", "plan")  # the progress bar says enough
 
 
