@@ -25,7 +25,7 @@ $(STAMP): pyproject.toml | $(VPY)
 	$(VPY) -m pip install -q --upgrade pip
 	# The CPU build of torch first (a bare `torch` requirement would pull a CUDA build).
 	$(VPY) -m pip install -q torch==2.13.0
-	$(VPY) -m pip install -q -e '.[dev,solver,fabrication,studio]'
+	$(VPY) -m pip install -q -e '.[dev,solver,fabrication,studio,sweep]'
 	touch $(STAMP)
 
 setup: $(STAMP)
