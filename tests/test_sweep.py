@@ -225,3 +225,15 @@ def test_task_names():
     long = task_name([(("g", "t"), "x" * 300)], [("g", "t")])
     assert len(long) == 100 and long != task_name([(("g", "t"), "x" * 301)], [("g", "t")])
     assert task_name([], []) == "base"
+
+
+def test_the_shipped_sweep_examples_parse(capsys):
+    from kgarment.problem import examples_dir
+
+    files = sorted((examples_dir() / "sweeps").glob("*.toml"))
+    assert files
+    for f in files:
+        sw = load_sweep(f)
+        assert sw.tasks and all(t.problem.solver.workers == 1 for t in sw.tasks)
+    assert main(["examples"]) == 0
+    assert "sweep files" in capsys.readouterr().out

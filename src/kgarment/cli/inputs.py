@@ -28,10 +28,15 @@ def cmd_garments(args) -> int:
 
 
 def cmd_examples(args) -> int:
-    from kgarment.problem import example_files, example_title
+    from kgarment.problem import example_files, example_title, examples_dir
 
     for f in example_files():
-        print(f"{str(f):60s} {example_title(f)}")
+        print(f"{f!s:60s} {example_title(f)}")
+    sweeps = sorted((examples_dir() / "sweeps").glob("*.toml"))
+    if sweeps:
+        print("sweep files (kgarment sweep FILE):")
+        for f in sweeps:
+            print(f"{f!s:60s} {example_title(f)}")
     return 0
 
 
@@ -115,7 +120,8 @@ def add_parsers(sub) -> None:
     sp = sub.add_parser("garments", help="list the garment templates")
     sp.set_defaults(func=cmd_garments)
 
-    sp = sub.add_parser("examples", help="list the example problem files (one per experiment of the paper)")
+    sp = sub.add_parser("examples", help="list the example problem files (one per experiment of the paper) and "
+                        "sweep files")
     sp.set_defaults(func=cmd_examples)
 
     sp = sub.add_parser("render", help="render body, garment and attachments for each motion to PNG")
