@@ -135,7 +135,11 @@ def ray_cluster(ray, workers: int | None, address: str | None):
         if address is None:
             os.environ.update(LOOPBACK)
             constants.ENABLE_RAY_CLUSTER = False  # read when the node's address is chosen
-            ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **kw)
+            try:
+                ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **kw)
+            except (ConnectionError, RuntimeError, OSError) as exc:
+                raise KgarmentError(f"Ray's local cluster did not start ({str(exc).splitlines()[0]}); see "
+                                    "/tmp/ray/session_latest/logs") from None
             ip = ray.util.get_node_ip_address()
             if ip not in ("127.0.0.1", "::1", "localhost"):
                 raise KgarmentError(f"Ray's local cluster took the address {ip}, not 127.0.0.1; kgarment starts no "
