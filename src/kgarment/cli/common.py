@@ -199,6 +199,9 @@ def print_evaluation(res) -> None:
         print(f"{r.motion:24s} {r.state:{w}s} {r.rho:7.3f} {r.energy:13.5g} {r.energy_full:11.5g}{flag}")
     print(f"reinforced area {100 * res.area:.1f}%; islands {res.islands} ({res.islands_with_clutches} counting "
           f"clutches as links); clutch ends on reinforcement {res.clutch_ends_supported}/{res.clutch_ends}")
+    for name, w in (res.by_wearer or {}).items():
+        print(f"  on {name}: {w['islands_with_clutches']} part(s) counting clutches as links, clutch ends on "
+              f"reinforcement {w['clutch_ends_supported']}/{w['clutch_ends']}")
     if res.loads is not None:
         print("clutch loads (share of the ON - OFF garment energy with only that clutch ON, the share lost with "
               "only it OFF / tension all ON; * loaded: either >= 0.1):")

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kgarment.design.loads import LoadReport, clutch_loads
-from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
+from kgarment.design.metrics import Stored, relative_energy_density
 from kgarment.design.setup import DesignSetup, StateKey, setup_from_problem
 from kgarment.errors import Cancelled, KgarmentError, unknown
 from kgarment.problem import Problem, build_body, build_clutches, build_garment
@@ -83,7 +83,9 @@ class DesignEvaluation:
 
     design : (m,) bool;  area : reinforced share of the rest area;  islands : parts of the
     reinforcement;  islands_with_clutches : parts when each clutch joins the parts its ends
-    sit on;  clutch_ends_supported / clutch_ends : clutch ends on reinforcement / all.
+    sit on;  clutch_ends_supported / clutch_ends : clutch ends on reinforcement / all (over
+    every wearer of a multi-body design);  by_wearer : a multi-body design's {wearer:
+    {islands_with_clutches, clutch_ends_supported, clutch_ends}} (None for one body).
     """
 
     design: np.ndarray = field(repr=False)
@@ -94,6 +96,7 @@ class DesignEvaluation:
     clutch_ends_supported: int
     clutch_ends: int
     loads: LoadReport | None = None
+    by_wearer: dict | None = None
 
     @property
     def converged(self) -> bool:
@@ -113,7 +116,8 @@ class DesignEvaluation:
         return {"rho": self.rho(), "rows": [s.row() for s in self.states], "area": self.area,
                 "islands": self.islands, "islands_with_clutches": self.islands_with_clutches,
                 "clutch_ends_supported": self.clutch_ends_supported, "clutch_ends": self.clutch_ends,
-                "converged": self.converged, **(self.loads.to_json() if self.loads is not None else {})}
+                "converged": self.converged, **({"by_wearer": self.by_wearer} if self.by_wearer else {}),
+                **(self.loads.to_json() if self.loads is not None else {})}
 
 
 @dataclass(frozen=True)
@@ -289,13 +293,11 @@ class Evaluator:
                 motion, state, rho, float(sd.face_energy[solid].sum() + sd.clutch_energy),
                 float(sf.face_energy.sum() + sf.clutch_energy), bool(rf.converged and eq.result.converged), other,
                 eq.result, rf))
-        ends = clutch_end_support(design, setup.end_faces)
-        faces = setup.model.garment_faces
+        shape = setup.structure(design)
         return DesignEvaluation(
-            solid, tuple(rows), float(setup.areas[solid].sum() / setup.areas.sum()),
-            islands(faces, design, adjacency=setup.adjacency),
-            islands(faces, design, links=setup.end_faces, adjacency=setup.adjacency),
-            int(sum(a + b for a, b in ends)), 2 * len(ends))
+            solid, tuple(rows), float(setup.areas[solid].sum() / setup.areas.sum()), shape["islands"],
+            shape["islands_with_clutches"], shape["clutch_ends_supported"], shape["clutch_ends"],
+            by_wearer=shape.get("by_wearer"))
 
 
 def activation_continuation(setup: DesignSetup, design: np.ndarray, state: SimState) -> StateResult:

@@ -40,7 +40,7 @@ from kgarment.design.beso import converged, design_values, next_target, settled_
 from kgarment.design.connect import connect_design
 from kgarment.design.evaluate import pick_equilibrium
 from kgarment.design.guard import REJECTED, TERM, boosted, guard_step, last_accepted, terms_of
-from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
+from kgarment.design.metrics import Stored, relative_energy_density
 from kgarment.design.objective import (
     combine_sensitivities,
     combined_objective,
@@ -194,13 +194,10 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
     terms = objective_terms(setup.objective, solved.energy, reference, list(setup.motions), setup.lockout,
                             setup.balance)
     obj = combined_objective(setup.combine, terms)
-    ends = clutch_end_support(design, setup.end_faces)
-    faces = setup.model.garment_faces
+    shape = setup.structure(design)
     row = {
         "iteration": st.iteration, "area": frac, "target": st.target, "objective": obj,
-        "islands": islands(faces, design, adjacency=setup.adjacency),
-        "islands_with_clutches": islands(faces, design, links=setup.end_faces, adjacency=setup.adjacency),
-        "clutch_ends_supported": int(sum(a + b for a, b in ends)), "clutch_ends": 2 * len(ends),
+        **{k: shape[k] for k in ("islands", "islands_with_clutches", "clutch_ends_supported", "clutch_ends")},
         "unconverged_states": ";".join(solved.unconverged), "seconds": 0.0,
         "newton_iterations": int(sum(r.convergence.iterations for r in solved.results)),
         "solver_tol": solved.options.tol,
@@ -259,7 +256,7 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
         design = update_design(base, rank, setup.areas, target, p, settled_ar(p, at_target))
         if p.connected and setup.ends:
             design = design_values(connect_design(design > 0.5, alpha, setup.areas, target, setup.adjacency,
-                                                  setup.end_faces, setup.attached, setup.loop_faces, guarded))
+                                                  setup.all_end_faces, setup.attached, setup.loop_faces, guarded))
         if setup.protected is not None:
             design[setup.protected] = 1.0
     warm = st.warm if rejected else {

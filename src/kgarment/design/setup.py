@@ -14,6 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from kgarment.design.beso import one_ring_filter, radius_filter
+from kgarment.design.metrics import clutch_end_support, islands
 from kgarment.design.objective import states_needed
 from kgarment.errors import KgarmentError
 from kgarment.garment import Garment
@@ -45,7 +46,9 @@ class Wearer:
     ``MOTION@NAME``);  model : SimModel of the garment on this body (same faces, this body's
     rest shape, the clutches at the same spots);  areas : (m,) rest face areas on this body,
     m^2;  clutch_area : total rest area of its clutches, m^2 (0 for the passive objective);
-    body : the kgarment Body, posed in the motions (renders).
+    body : the kgarment Body, posed in the motions (renders);  ends : per clutch, the
+    garment faces under its ends on this body (the same clutch spans other faces on
+    another body).
     """
 
     name: str
@@ -54,6 +57,7 @@ class Wearer:
     areas: np.ndarray = field(repr=False)
     clutch_area: float
     body: object = field(repr=False, default=None)
+    ends: tuple[ClutchEnds, ...] = field(repr=False, default=())
 
 
 @dataclass(frozen=True)
@@ -118,10 +122,7 @@ class DesignSetup:
             filt = radius_filter(X[F].mean(1), areas, params.radius)
         else:
             filt = one_ring_filter(F, areas, len(X))
-        ends = []
-        for c in model.clutches:
-            a, bind = np.asarray(c.anchors), np.asarray(c.bind_face)
-            ends.append(ClutchEnds(bind[a[[0, 1, 2]]], bind[a[[3, 4, 5]]]))
+        ends = clutch_ends(model)
         clutch_area = sum(float(triangle_areas(c.vertices, c.faces).sum()) for c in model.clutches)
         attached = np.unique(np.concatenate([np.asarray(m.attach_faces) for m in motions.values()] or [[]]))
         on_vertex = sp.csr_matrix((np.ones(F.size), (F.ravel(), np.repeat(np.arange(len(F)), 3))),
@@ -162,6 +163,39 @@ class DesignSetup:
     def end_faces(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """[(faces under end A, faces under end B)] per clutch (the metrics' links)."""
         return [(e.a, e.b) for e in self.ends]
+
+    def wearer_end_faces(self) -> dict[str, list[tuple[np.ndarray, np.ndarray]]]:
+        """{wearer: :attr:`end_faces` on that wearer's body} ({"": end_faces} for one body)."""
+        if not self.wearers:
+            return {"": self.end_faces}
+        out: dict = {}
+        for w in self.wearers.values():
+            out.setdefault(w.name, [(e.a, e.b) for e in w.ends])
+        return out
+
+    @property
+    def all_end_faces(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Every wearer's clutch ends (the connected update keeps each on reinforcement)."""
+        return [e for ends in self.wearer_end_faces().values() for e in ends]
+
+    def structure(self, design: np.ndarray) -> dict:
+        """The paper's structural properties of ``design`` (m,): ``islands`` (parts of the
+        reinforcement), ``islands_with_clutches`` (parts when each clutch joins the parts its
+        ends sit on; the most over the wearers), ``clutch_ends_supported`` / ``clutch_ends``
+        (over every wearer) and, for a multi-body design, ``by_wearer`` {name: the same three}."""
+        faces = self.model.garment_faces
+        per = {}
+        for name, ends in self.wearer_end_faces().items():
+            sup = clutch_end_support(design, ends)
+            per[name] = {"islands_with_clutches": islands(faces, design, links=ends, adjacency=self.adjacency),
+                         "clutch_ends_supported": int(sum(a + b for a, b in sup)), "clutch_ends": 2 * len(sup)}
+        out = {"islands": islands(faces, design, adjacency=self.adjacency),
+               "islands_with_clutches": max(v["islands_with_clutches"] for v in per.values()),
+               "clutch_ends_supported": sum(v["clutch_ends_supported"] for v in per.values()),
+               "clutch_ends": sum(v["clutch_ends"] for v in per.values())}
+        if self.wearers:
+            out["by_wearer"] = per
+        return out
 
     def on_activation(self, motion: str) -> np.ndarray:
         """(K,) the activation of ``motion``'s ON state: its set, or every clutch."""
@@ -218,6 +252,15 @@ class DesignSetup:
         if self.evolution_solver is not None and iteration > 0 and target != self.params.target_area:
             return self.evolution_solver
         return self.solver
+
+
+def clutch_ends(model: SimModel) -> tuple[ClutchEnds, ...]:
+    """The garment faces under each clutch's two ends (its anchors' bind faces) in ``model``."""
+    out = []
+    for c in model.clutches:
+        a, bind = np.asarray(c.anchors), np.asarray(c.bind_face)
+        out.append(ClutchEnds(bind[a[[0, 1, 2]]], bind[a[[3, 4, 5]]]))
+    return tuple(out)
 
 
 def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose: str = "design",

@@ -91,15 +91,17 @@ def _evaluation(run: Path) -> dict:
     return json.loads(path.read_text())
 
 
-def _properties(ev: dict, motions: list[str]) -> dict:
-    """The structural properties and clutch loads of an evaluation, for ``motions`` keys."""
+def _properties(ev: dict, motions: list[str], wearer: str | None = None) -> dict:
+    """The structural properties and clutch loads of an evaluation, for ``motions`` keys
+    (``wearer``: a multi-body evaluation's, on that wearer's body)."""
+    shape = ev.get("by_wearer", {}).get(wearer) or ev
     loads = {}
     for c in ev.get("clutches", []):
         if c["motion"] in motions:
             loads.setdefault(c["clutch"], {})[c["motion"]] = {k: c.get(k) for k in ("share", "needed", "tension_N",
                                                                                   "loaded")}
-    return {"parts": ev["islands_with_clutches"], "clutch_ends_supported": ev["clutch_ends_supported"],
-            "clutch_ends": ev["clutch_ends"], "area": ev["area"], "clutches": loads}
+    return {"parts": shape["islands_with_clutches"], "clutch_ends_supported": shape["clutch_ends_supported"],
+            "clutch_ends": shape["clutch_ends"], "area": ev["area"], "clutches": loads}
 
 
 def compare(runs: Path, names, motions: list[str]) -> dict:
@@ -112,7 +114,7 @@ def compare(runs: Path, names, motions: list[str]) -> dict:
         for m, k in zip(motions, keys):
             rows.append(SizeRow(n, m, own["rho"][m]["on"], own["rho"][m]["off"], shared["rho"][k]["on"],
                                 shared["rho"][k]["off"]))
-        wearers[n] = {"own": _properties(own, motions), "shared": _properties(shared, keys)}
+        wearers[n] = {"own": _properties(own, motions), "shared": _properties(shared, keys, n)}
     kept = [r.kept for r in rows]
     return {"keep_target": KEEP, "keeps": bool(all(k >= KEEP for k in kept)), "min_kept": min(kept),
             "rows": [r.row() for r in rows], "wearers": wearers,
@@ -126,7 +128,7 @@ def sizes_markdown(doc: dict) -> str:
     s = doc["shared"]
     lines = ["# One design for every size against one design per size", "",
              (f"Shared design (runs/{SHARED}, iteration {s['iteration']}): {s['parts']} part(s) counting clutches as "
-             f"links, {s['clutch_ends_supported']}/{s['clutch_ends']} clutch ends on reinforcement, "
+             f"links, {s['clutch_ends_supported']}/{s['clutch_ends']} clutch ends on reinforcement over the wearers, "
              f"{100 * s['area']:.1f}% of the area reinforced."), "",
              "| wearer | motion | own rho ON | own rho OFF | shared rho ON | shared rho OFF | kept |",
              "|---|---|---|---|---|---|---|"]

@@ -52,7 +52,7 @@ def wearer_motions(problem: Problem, body, garment, strips, model, motions: dict
     motions : {motion: Motion} and activation : {motion: (K,)} on that body.  Returns
     ({MOTION@BODY: Motion}, {MOTION@BODY: (K,)}, {MOTION@BODY: Wearer}).
     """
-    from kgarment.design.setup import Wearer
+    from kgarment.design.setup import Wearer, clutch_ends
 
     clutched = problem.design.objective != "passive"
     specs = clutch_specs(problem, body) if specs is None else list(specs)
@@ -74,5 +74,5 @@ def wearer_motions(problem: Problem, body, garment, strips, model, motions: dict
             out_m[key] = dataclasses.replace(ms[m], name=key)
             if m in activation:
                 out_a[key] = np.asarray(activation[m])
-            out_w[key] = Wearer(name, m, mdl, areas, c_area, b)
+            out_w[key] = Wearer(name, m, mdl, areas, c_area, b, clutch_ends(mdl))
     return out_m, out_a, out_w
