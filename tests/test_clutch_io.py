@@ -146,3 +146,20 @@ def test_malformed_documents(tmp_path):
         load_clutches(path)
     path.write_text(rec)
     assert load_clutches(path) == [ClutchSpec("c", (0, 0, 0), (1, 0, 0), 0.1)]
+
+
+def test_written_files_have_the_usual_permissions(tmp_path):
+    """Atomic writes go through a private temporary file; the result is readable like a
+    file opened for writing (0666 less the umask), not 0600."""
+    import os
+    import stat
+
+    from kgarment.io import atomic_write_text
+
+    mask = os.umask(0o022)
+    os.umask(mask)
+    path = atomic_write_text(tmp_path / "a.txt", "x")
+    assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~mask
+    with open(tmp_path / "b.txt", "w") as f:
+        f.write("x")
+    assert stat.S_IMODE(path.stat().st_mode) == stat.S_IMODE((tmp_path / "b.txt").stat().st_mode)
