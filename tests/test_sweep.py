@@ -71,7 +71,8 @@ def test_each_task_is_a_finished_run_of_its_own_problem(swept):
         assert p.solver.workers == 1  # one process per task: the sweep runs the tasks side by side
         rows = json.loads((run / "metrics.json").read_text())
         assert 1 <= len(rows) <= 4
-        assert (out / "logs" / f"{name}.log").stat().st_size > 0
+        logged = (out / "logs" / f"{name}.log").read_text()
+        assert "torch threads 1, OMP_NUM_THREADS 1, MKL_NUM_THREADS 1, OPENBLAS_NUM_THREADS 1" in logged
         assert load_problem(out / "tasks" / f"{name}.toml").design.beso.target_area == area  # runs alone too
 
 

@@ -38,7 +38,7 @@ THREAD_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THRE
 # on macOS and Windows): then its servers listen on 127.0.0.1 only
 LOOPBACK = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_USAGE_STATS_ENABLED": "0"}
 INSTALL = "pip install 'kgarment[sweep]' (or pip install 'ray>=2.40')"
-POLL_S = 0.5
+POLL_S = 1.0  # s between the driver's looks at the tasks
 
 
 @dataclass
@@ -68,7 +68,6 @@ def import_ray():
     """The ray module, or one KgarmentError saying how to install it."""
     try:
         import ray
-        import ray.util.queue
     except ImportError:
         raise KgarmentError(f"kgarment sweep runs its tasks on Ray, which is not installed: {INSTALL}") from None
     return ray
@@ -126,14 +125,13 @@ def _status(run: Path) -> str:
 def ray_cluster(ray, workers: int | None, address: str | None):
     """Ray started (a local cluster: loopback only, ``workers`` CPUs) or connected (an
     existing cluster at ``address``) for the block, shut down after it."""
-    saved = {k: os.environ.get(k) for k in LOOPBACK}
+    saved = {k: os.environ.get(k) for k in {**LOOPBACK, **THREAD_ENV}}
     constants = ray._private.ray_constants
     saved_flag = getattr(constants, "ENABLE_RAY_CLUSTER", None)
-    kw = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR,
-          "runtime_env": {"env_vars": dict(THREAD_ENV)}}
+    kw = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR}
     try:
-        if address is None:
-            os.environ.update(LOOPBACK)
+        if address is None:  # the local workers inherit the environment (a runtime_env would start others)
+            os.environ.update({**LOOPBACK, **THREAD_ENV})
             constants.ENABLE_RAY_CLUSTER = False  # read when the node's address is chosen
             try:
                 ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **kw)
@@ -147,7 +145,7 @@ def ray_cluster(ray, workers: int | None, address: str | None):
         else:
             os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
             try:
-                ray.init(address=address, **kw)
+                ray.init(address=address, runtime_env={"env_vars": dict(THREAD_ENV)}, **kw)
             except (ConnectionError, ValueError, RuntimeError) as exc:
                 raise KgarmentError(f"--address {address}: cannot connect to a Ray cluster there "
                                     f"({str(exc).splitlines()[0]})") from None
@@ -166,15 +164,13 @@ def ray_cluster(ray, workers: int | None, address: str | None):
 
 def _execute(ray, folder: SweepFolder, tasks, state: SweepProgress, progress, address, base_dir: Path) -> None:
     """Submit ``tasks``, record each as it ends, report progress; Ctrl-C cancels them."""
-    from ray.util.queue import Queue
-
     if address is not None:
         log.warning("tasks run on the Ray cluster at %s and write their run folders under %s on the node that runs "
                     "each: put that folder on storage every node shares to have them all there (the table is made "
                     "from what the tasks return either way)", address, folder.root)
     cpus = int(ray.cluster_resources().get("CPU", 1))
     log.info("%d tasks on Ray (%d CPUs), one CPU each; run folders in %s", len(tasks), cpus, folder.root / "runs")
-    queue = Queue(actor_options={"num_cpus": 0})
+    queue = ray.remote(num_cpus=0)(Reports).remote()
     remote = ray.remote(num_cpus=1, max_retries=0)(run_task)
     refs = {remote.remote(_job(folder, t, base_dir), queue): t.name for t in tasks}
     started = {}
@@ -207,11 +203,26 @@ def _execute(ray, folder: SweepFolder, tasks, state: SweepProgress, progress, ad
         raise
 
 
+class Reports:
+    """A Ray actor holding the tasks' reports ((task, "start" | "iteration", value), ...)
+    until the driver takes them: one call each way, nothing waits."""
+
+    def __init__(self) -> None:
+        self.items: list = []
+
+    def put(self, item) -> None:
+        self.items.append(item)
+
+    def take(self) -> list:
+        out, self.items = self.items, []
+        return out
+
+
 def _drain(queue) -> list:
+    import ray
+
     with contextlib.suppress(Exception):
-        n = queue.size()
-        if n:
-            return queue.get_nowait_batch(n)
+        return ray.get(queue.take.remote(), timeout=10)
     return []
 
 
@@ -263,10 +274,12 @@ def run_task(job: dict, queue=None) -> dict:
         # fire and forget: a task blocked in ray.get lends its CPU to another task
         if queue is not None:
             with contextlib.suppress(Exception):
-                queue.actor.put_nowait.remote((job["name"], kind, value))
+                queue.put.remote((job["name"], kind, value))
 
     try:
-        with single_thread():
+        with single_thread() as threads:
+            log.info("task %s: process %d on %s; torch threads %d, %s", job["name"], os.getpid(), os.uname().nodename,
+                     threads, ", ".join(f"{k} {os.environ.get(k)}" for k in THREAD_ENV))
             _run(job, report)
         rec = summarise_run(job["run"])
         if rec["status"] != "finished":
@@ -323,6 +336,6 @@ def single_thread():
     torch.set_num_threads(1)
     try:
         with threadpool_limits(limits=1):
-            yield
+            yield torch.get_num_threads()
     finally:
         torch.set_num_threads(saved)
