@@ -19,7 +19,7 @@ from kgarment.cli import design, fabricate, inputs, plan, reproduce, simulate, s
 from kgarment.errors import KgarmentError
 
 GROUPS = (inputs, simulate, design, plan, fabricate, studio, reproduce, sweep)
-QUIET_SOLVER = ("design", "demo", "reproduce", "plan")  # the progress bar says enough
+QUIET_SOLVER = ("design", "demo", "reproduce", "plan", "sizes")  # the progress bar says enough
 
 
 class Parser(argparse.ArgumentParser):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import time
 from pathlib import Path
 
@@ -110,15 +111,17 @@ def cmd_sizes(args) -> int:
     motions = list(problem.motions)
     print(f"wearers: {', '.join(problem.body.names)}; motions: {', '.join(motions)}; runs in {args.out}/runs")
     total = expected_iterations(problem.design.beso)
+    bars = contextlib.ExitStack()
 
-    def progress(name):
+    def progress(name):  # a progress bar per design, each closed when the next one starts
+        bars.close()
         print(f"design {name}: " + ("every wearer at once" if name == "all" else f"for {name} alone"))
-        return None if args.quiet else (lambda st: print(f"  {name} it {st.metrics[-1]['iteration']:>3}/{total} "
-                                                          f"{rho_line(st.metrics[-1], [])}", flush=True)
-                                         if st.metrics[-1]["iteration"] % 10 == 0 else None)
+        keys = motions if name != "all" else [f"{m}@{n}" for n in problem.body.names for m in motions]
+        return bars.enter_context(design_progress(total, 0, keys[:3], args.quiet))
 
     try:
-        doc = run_sizes(problem, args.out, device=args.device, force=args.force, progress=progress)
+        with bars:
+            doc = run_sizes(problem, args.out, device=args.device, force=args.force, progress=progress)
     except KeyboardInterrupt:
         print(f"\ninterrupted; run the same command again to continue (finished runs in {args.out}/runs are kept)")
         return 130
