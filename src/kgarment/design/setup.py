@@ -16,6 +16,7 @@ import scipy.sparse as sp
 from kgarment.design.beso import one_ring_filter, radius_filter
 from kgarment.design.metrics import clutch_end_support, islands
 from kgarment.design.objective import states_needed
+from kgarment.design.wearers import ClutchEnds, Wearer, clutch_ends, wearer_motions
 from kgarment.errors import KgarmentError
 from kgarment.garment import Garment
 from kgarment.garment.topology import boundary_loops, face_adjacency, triangle_areas
@@ -25,39 +26,6 @@ from kgarment.sim import Motion, SimModel, SimState, SolverOptions, garment_moti
 StateKey = tuple[str, str]  # (motion, "on" | "off" | "none" | "lock:OTHER MOTION" | "solo:CLUTCH")
 LOCK = "lock:"  # state label prefix: a motion under another motion's activation set
 SOLO = "solo:"  # state label prefix: a motion with one clutch of its set ON, the others OFF
-
-
-@dataclass(frozen=True)
-class ClutchEnds:
-    """The garment faces under one clutch's two ends (the faces its anchors bind to).
-
-    a, b : (3,) int face ids under end A (the start) and end B.
-    """
-
-    a: np.ndarray
-    b: np.ndarray
-
-
-@dataclass(frozen=True)
-class Wearer:
-    """One body of a multi-body design (``[body] phenotypes``) for one of its motions.
-
-    name : the wearer's name;  motion : the problem's motion name (the setup's is
-    ``MOTION@NAME``);  model : SimModel of the garment on this body (same faces, this body's
-    rest shape, the clutches at the same spots);  areas : (m,) rest face areas on this body,
-    m^2;  clutch_area : total rest area of its clutches, m^2 (0 for the passive objective);
-    body : the kgarment Body, posed in the motions (renders);  ends : per clutch, the
-    garment faces under its ends on this body (the same clutch spans other faces on
-    another body).
-    """
-
-    name: str
-    motion: str
-    model: SimModel = field(repr=False)
-    areas: np.ndarray = field(repr=False)
-    clutch_area: float
-    body: object = field(repr=False, default=None)
-    ends: tuple[ClutchEnds, ...] = field(repr=False, default=())
 
 
 @dataclass(frozen=True)
@@ -254,15 +222,6 @@ class DesignSetup:
         return self.solver
 
 
-def clutch_ends(model: SimModel) -> tuple[ClutchEnds, ...]:
-    """The garment faces under each clutch's two ends (its anchors' bind faces) in ``model``."""
-    out = []
-    for c in model.clutches:
-        a, bind = np.asarray(c.anchors), np.asarray(c.bind_face)
-        out.append(ClutchEnds(bind[a[[0, 1, 2]]], bind[a[[3, 4, 5]]]))
-    return tuple(out)
-
-
 def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose: str = "design",
                        device: str = "cpu", objective: str | None = None, specs=None) -> DesignSetup:
     """The setup of ``problem`` on a built body, garment (its attachments are held) and clutch
@@ -288,8 +247,6 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
     activation = activation_vectors(problem, [c.name for c in use])
     wearers = None
     if problem.body.phenotypes:
-        from kgarment.design.wearers import wearer_motions
-
         motions, activation, wearers = wearer_motions(problem, body, garment, strips, model, motions, activation,
                                                       specs)
     return DesignSetup.build(model, motions, d.objective, d.beso, solver,

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -21,9 +22,51 @@ from kgarment.constants import BODY_SEP
 from kgarment.design.transfer import clutches_on, garment_on
 from kgarment.garment.topology import triangle_areas
 from kgarment.problem import Problem, build_body, build_model, clutch_specs
-from kgarment.sim import garment_motions
+from kgarment.sim import SimModel, garment_motions
 
 log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ClutchEnds:
+    """The garment faces under one clutch's two ends (the faces its anchors bind to).
+
+    a, b : (3,) int face ids under end A (the start) and end B.
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+
+
+@dataclass(frozen=True)
+class Wearer:
+    """One body of a multi-body design (``[body] phenotypes``) for one of its motions.
+
+    name : the wearer's name;  motion : the problem's motion name (the setup's is
+    ``MOTION@NAME``);  model : SimModel of the garment on this body (same faces, this body's
+    rest shape, the clutches at the same spots);  areas : (m,) rest face areas on this body,
+    m^2;  clutch_area : total rest area of its clutches, m^2 (0 for the passive objective);
+    body : the kgarment Body, posed in the motions (renders);  ends : per clutch, the
+    garment faces under its ends on this body (the same clutch spans other faces on
+    another body).
+    """
+
+    name: str
+    motion: str
+    model: SimModel = field(repr=False)
+    areas: np.ndarray = field(repr=False)
+    clutch_area: float
+    body: object = field(repr=False, default=None)
+    ends: tuple[ClutchEnds, ...] = field(repr=False, default=())
+
+
+def clutch_ends(model: SimModel) -> tuple[ClutchEnds, ...]:
+    """The garment faces under each clutch's two ends (its anchors' bind faces) in ``model``."""
+    out = []
+    for c in model.clutches:
+        a, bind = np.asarray(c.anchors), np.asarray(c.bind_face)
+        out.append(ClutchEnds(bind[a[[0, 1, 2]]], bind[a[[3, 4, 5]]]))
+    return tuple(out)
 
 
 def wearer_key(motion: str, body: str) -> str:
@@ -52,8 +95,6 @@ def wearer_motions(problem: Problem, body, garment, strips, model, motions: dict
     motions : {motion: Motion} and activation : {motion: (K,)} on that body.  Returns
     ({MOTION@BODY: Motion}, {MOTION@BODY: (K,)}, {MOTION@BODY: Wearer}).
     """
-    from kgarment.design.setup import Wearer, clutch_ends
-
     clutched = problem.design.objective != "passive"
     specs = clutch_specs(problem, body) if specs is None else list(specs)
     out_m, out_a, out_w = {}, {}, {}
