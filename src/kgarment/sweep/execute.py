@@ -151,7 +151,7 @@ def ray_cluster(ray, workers: int | None, address: str | None):
                                     f"({str(exc).splitlines()[0]})") from None
         yield ray
     finally:
-        if ray.is_initialized():
+        with contextlib.suppress(Exception):  # also after a Ctrl-C while Ray was starting
             ray.shutdown()
         if saved_flag is not None:
             constants.ENABLE_RAY_CLUSTER = saved_flag
