@@ -22,6 +22,7 @@ import argparse
 import csv
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -148,7 +149,7 @@ def main() -> None:
             print(f"  {name:32s} {one['iterations'][name]:4d} iterations  {one['task_wall_s'][name]:6.1f} s alone, "
                   f"{two['task_wall_s'][name]:6.1f} s beside another")
     ratios = sorted(one["wall_s"] / two["wall_s"] for one, two in pairs if not disturbed(one, two))
-    median = ratios[len(ratios) // 2] if ratios else float("nan")
+    median = statistics.median(ratios) if ratios else float("nan")
     first = pairs[0][0]
     same = all(r["rho"] == first["rho"] and r["iterations"] == first["iterations"] for p in pairs for r in p)
     print(f"speed-up of the undisturbed pairs {', '.join(f'{r:.2f}x' for r in ratios) or 'none'}: median "
