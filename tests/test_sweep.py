@@ -238,3 +238,14 @@ def test_the_shipped_sweep_examples_parse(capsys):
         assert sw.tasks and all(t.problem.solver.workers == 1 for t in sw.tasks)
     assert main(["examples"]) == 0
     assert "sweep files" in capsys.readouterr().out
+
+
+def test_help_does_not_import_ray():
+    """Ray is an optional extra, imported only when a sweep runs tasks."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from kgarment.cli import build_parser; build_parser().format_help(); "
+            "print('ray' in sys.modules, 'kgarment.sweep' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False", "False"]
