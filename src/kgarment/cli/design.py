@@ -200,9 +200,10 @@ def evaluate_on_phenotype(args, p, phen, run_body, garment, design) -> dict:
 
     from kgarment.design import Evaluator
     from kgarment.design.transfer import clutches_on, garment_on
+    from kgarment.design.wearers import on_phenotype
     from kgarment.problem import build_body, clutch_specs
 
-    other = dataclasses.replace(p, body=dataclasses.replace(p.body, phenotype=phen, phenotypes=()))
+    other = on_phenotype(p, phen)
     body = build_body(other)
     g = garment_on(body, garment)
     strips = clutches_on(clutch_specs(p, run_body), run_body, garment, g)

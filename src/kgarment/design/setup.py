@@ -113,6 +113,7 @@ class DesignSetup:
         return self.areas if w is None else w.areas
 
     def clutch_area_of(self, motion: str) -> float:
+        """Total rest area of ``motion``'s wearer's clutches, m^2 (rho's normalisation)."""
         w = self.wearers.get(motion)
         return self.clutch_area if w is None else w.clutch_area
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from kgarment.design.driver import finish, open_run
 from kgarment.design.run import run_status
-from kgarment.design.wearers import wearer_key, wearer_problem
+from kgarment.design.wearers import split_key, wearer_key, wearer_problem
 from kgarment.errors import KgarmentError
 from kgarment.io import atomic_write_text
 from kgarment.problem import Problem
@@ -144,7 +144,7 @@ def sizes_markdown(doc: dict) -> str:
             p = w[which]
             lines.append(f"- {n}, {which} design: {p['parts']} part(s), {p['clutch_ends_supported']}/{p['clutch_ends']}"
                          " clutch ends supported; " + "; ".join(
-                             f"{c}: " + ", ".join(f"{m.split('@')[0]} {v['share']:.2f}/{_f(v.get('needed'))}/"
+                             f"{c}: " + ", ".join(f"{split_key(m)[0]} {v['share']:.2f}/{_f(v.get('needed'))}/"
                                                    f"{v['tension_N']:.0f} N" for m, v in per.items())
                              for c, per in p["clutches"].items()))
     return "\n".join(lines) + "\n"

@@ -80,12 +80,17 @@ def split_key(key: str) -> tuple[str, str | None]:
     return motion, (body if sep else None)
 
 
+def on_phenotype(problem: Problem, phenotype) -> Problem:
+    """``problem`` on one Anny body of ``phenotype`` alone (a one-body problem)."""
+    return dataclasses.replace(problem, body=dataclasses.replace(problem.body, phenotype=phenotype, phenotypes=()))
+
+
 def wearer_problem(problem: Problem, name: str) -> Problem:
     """``problem`` on one of its wearers alone (a one-body problem with that phenotype)."""
     ph = dict(problem.body.phenotypes).get(name)
     if ph is None:
         raise KeyError(name)
-    return dataclasses.replace(problem, body=dataclasses.replace(problem.body, phenotype=ph, phenotypes=()))
+    return on_phenotype(problem, ph)
 
 
 def wearer_motions(problem: Problem, body, garment, strips, model, motions: dict, activation: dict, specs=None):
