@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from kgarment.sim.contact import contact, gather, imls_fast, update_neighbors
+from kgarment.sim.contact import NEIGHBORS, contact, gather, imls_fast, update_neighbors
 from kgarment.sim.materials import (
     check_design,
     clutch_material,
@@ -160,7 +160,9 @@ class StateProblem:
         self.spring_hess = np.bincount(pos, weights=vals, minlength=pat.nnz)
         self.elem_sel, self.elem_pos = T(pat.elem_select, torch.long), T(pat.elem_pos, torch.long)
         self.vert_sel, self.vert_pos = T(pat.vert_select, torch.long), T(pat.vert_pos.ravel(), torch.long)
-        self.cache = None
+        # neighbour lists from this state's last solve in this process, where exact (contact.NeighborStore)
+        self._store_key = (state.name, model.n_vertices, mot.body.key)
+        self.cache = NEIGHBORS.get(self._store_key)
         self._cache_obj = None
         self.m_garment = model.n_faces
         self.n_evals = 0
@@ -173,12 +175,17 @@ class StateProblem:
 
     def _contact_args(self, x: torch.Tensor):
         """(bv, bn, bh, index, valid, nearest) for the current neighbour lists at x."""
-        self.cache = update_neighbors(self.body, x.detach().cpu().numpy(), self.cache)
-        c = self.cache
+        prev = self.cache
+        self.cache = c = update_neighbors(self.body, x.detach().cpu().numpy(), prev)
         if self._cache_obj is not c:
             self._cache_t = (self._t(c.index, torch.long), self._t(c.valid), self._t(c.nearest, torch.long))
+            # a few lists re-queried: recompute only their rows of the gathered quantities
+            partial = self._cache_obj is not None and self._cache_obj is prev and c.changed is not None
+            rows = self._t(c.changed, torch.long) if partial and 2 * len(c.changed) < len(c.index) else None
+            self._pre = gather(self.bv, self.bn, self.bh, *self._cache_t, rows=rows,
+                               into=self._pre if rows is not None else None)
             self._cache_obj = c
-            self._pre = gather(self.bv, self.bn, self.bh, *self._cache_t)
+            NEIGHBORS.put(self._store_key, c)
         return (self.bv, self.bn, self.bh) + self._cache_t
 
     def _check(self, value: torch.Tensor, term: str, what: str = "energy") -> None:
