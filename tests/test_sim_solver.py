@@ -110,6 +110,23 @@ def test_newton_and_lbfgs_agree():
     assert np.abs(rn.x - rl.x).max() < 1e-6 * span
 
 
+def test_a_stuck_exact_hessian_goes_on_adaptive(monkeypatch, caplog):
+    """Where the shifted exact Hessian gets stuck (its shift escalates, or the energy stops
+    falling), Newton goes on with the adaptive Hessian from where it is, and reaches the
+    equilibrium that Newton and L-BFGS agree on (switching at once forces the path)."""
+    import kgarment.sim.newton as newton
+
+    model, _motion, state = sheet_scene("reference")
+    d = np.full(model.n_faces, 0.001)
+    ref = solve_states(model, d, [state])[0]
+    monkeypatch.setattr(newton, "STUCK_SHIFT", 0.0)
+    caplog.set_level(logging.DEBUG, logger="kgarment.sim.newton")
+    r = solve_states(model, d, [state])[0]
+    assert "going on with the adaptive Hessian" in caplog.text
+    assert r.converged and ref.converged
+    assert abs(r.total_energy - ref.total_energy) < 1e-6 * abs(ref.total_energy)
+
+
 @pytest.mark.parametrize("preset", ["reference", "paper"])
 @pytest.mark.parametrize("dval", [0.001, 1.0])
 def test_contact_keeps_penetration_below_1mm(preset, dval):
