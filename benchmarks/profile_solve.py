@@ -27,7 +27,7 @@ PARTS = ("factorise", "factorise (failed shift)", "anticipation update", "solve"
 
 def instrument(timers: dict, counts: dict) -> None:
     """Wrap the solver's parts with timers (this process only)."""
-    from kgarment.sim import contact, energy
+    from kgarment.sim import energy
     from kgarment.sim.assembly import NotPositiveDefinite, SparseCholesky
 
     def timed(owner, name, part_of):
@@ -73,7 +73,6 @@ def instrument(timers: dict, counts: dict) -> None:
           lambda a, k, failed: "evaluate (with derivatives)" if k.get("order", a[2] if len(a) > 2 else 0) > 0
           else "evaluate (line search)")
     timed(energy.StateProblem, "_contact_args", lambda a, k, failed: "of which neighbour lists")
-    del contact
 
 
 def main() -> None:

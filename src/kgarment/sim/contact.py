@@ -232,9 +232,6 @@ class NeighborStore:
                                  or sum(c.nbytes for c in self._entries.values()) > self.max_bytes):
             self._entries.pop(next(iter(self._entries)))
 
-    def clear(self) -> None:
-        self._entries.clear()
-
 
 NEIGHBORS = NeighborStore()
 

@@ -163,7 +163,7 @@ class StateProblem:
         # neighbour lists from this state's last solve in this process, where exact (contact.NeighborStore)
         self._store_key = (state.name, model.n_vertices, mot.body.key)
         self.cache = NEIGHBORS.get(self._store_key)
-        self._cache_obj = None
+        self._cache_obj = self._pre = None
         self.m_garment = model.n_faces
         self.n_evals = 0
 
@@ -180,10 +180,9 @@ class StateProblem:
         if self._cache_obj is not c:
             self._cache_t = (self._t(c.index, torch.long), self._t(c.valid), self._t(c.nearest, torch.long))
             # a few lists re-queried: recompute only their rows of the gathered quantities
-            partial = self._cache_obj is not None and self._cache_obj is prev and c.changed is not None
-            rows = self._t(c.changed, torch.long) if partial and 2 * len(c.changed) < len(c.index) else None
-            self._pre = gather(self.bv, self.bn, self.bh, *self._cache_t, rows=rows,
-                               into=self._pre if rows is not None else None)
+            partial = self._cache_obj is prev and c.changed is not None and 2 * len(c.changed) < len(c.index)
+            rows = self._t(c.changed, torch.long) if partial else None
+            self._pre = gather(self.bv, self.bn, self.bh, *self._cache_t, rows=rows, into=self._pre)
             self._cache_obj = c
             NEIGHBORS.put(self._store_key, c)
         return (self.bv, self.bn, self.bh) + self._cache_t

@@ -109,7 +109,7 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
             # the exact curvature is stuck where elements switch branches: go on adaptive
             log.debug("newton %s: %s at residual %.3e; going on with the adaptive Hessian", prob.name,
                       "stalled" if stalled else f"shift {tau:.0e}", fmax)
-            strategy, exact, energies = "adaptive", False, [E]
+            strategy, exact, energies = "adaptive", False, []  # the stall window starts again here
             E, g, H = prob.evaluate(x, order=2)
             continue
         if stalled:
