@@ -48,6 +48,11 @@ with the adaptive or projected Hessian stops unconverged ("stalled");
 :func:`kgarment.sim.solve.solve_states` then retries it with larger shifts
 (``rescue_shifts``).
 
+The full step's trial point is evaluated with its gradient and Hessian (of the kind the
+next iteration uses): where it is accepted without extrapolation -- most iterations -- the
+next iteration starts from that evaluation instead of evaluating the same point again.  The
+iterates are the same as with a value-only trial (the same point, the same arithmetic).
+
 Near the solution energy differences fall below float64 round-off of the total energy;
 the Armijo test therefore allows an increase of ``1e-12 |E|`` (round-off), so a full
 Newton step is not rejected for noise.
@@ -145,12 +150,16 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
             dx *= max_move / move
         dxt = torch.as_tensor(dx.reshape(-1, 3), device=prob.device)
         slope = float((g * dxt).sum())
-        alpha, accepted = 1.0, False
+        alpha, accepted, ahead = 1.0, False, None
         if slope < 0.0:
             slack = 1e-12 * abs(E)
             for _ in range(opts.max_backtracks):
                 xt = x + alpha * dxt
-                Et, _, _ = prob.evaluate(xt, order=0, check=False)
+                if alpha == 1.0:  # the full step, usually taken: its derivatives come with it
+                    Et, gt, Ht = prob.evaluate(xt, order=2, check=False, exact=strategy != "projected")
+                    ahead = (Et, gt, Ht)
+                else:
+                    Et, _, _ = prob.evaluate(xt, order=0, check=False)
                 if Et <= E + opts.armijo * alpha * slope + slack:
                     accepted = True
                     break
@@ -186,13 +195,22 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
             mu = mu * 10.0
         exact = strategy == "shifted" or (strategy == "adaptive" and alpha >= 1.0)
         x = xt
-        E, g, H = prob.evaluate(x, order=2, exact=exact)
+        if alpha == 1.0 and _finite(ahead):
+            E, g, H = ahead  # the same point and Hessian kind: no second evaluation
+        else:
+            E, g, H = prob.evaluate(x, order=2, exact=exact)
     rec = Convergence(
         converged=converged, iterations=it, residual=history[-1], tolerance=tol_f,
         force_max=prob.max_force(g), grad_norm=float(torch.linalg.vector_norm(g)),
         wall_time=time.perf_counter() - t0, evaluations=prob.n_evals - ev0, method="newton",
         history=tuple(history))
     return x.cpu().numpy(), rec
+
+
+def _finite(ahead) -> bool:
+    """Whether a trial evaluation (E, g, H) is usable as the next iterate's (else it is
+    evaluated again with checks, which name the term that failed)."""
+    return ahead is not None and bool(torch.isfinite(ahead[1]).all()) and bool(np.isfinite(ahead[2]).all())
 
 
 def _solve(linsolver: SparseCholesky, H: np.ndarray, rhs: np.ndarray, shift: np.ndarray) -> np.ndarray | None:
