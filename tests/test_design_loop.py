@@ -160,3 +160,27 @@ def test_settle_cools_the_exchange_at_the_target():
         ks.append(k)
     assert ks[-1] >= 6  # the run spent long enough at the target to cool down to no exchange
     assert not (st.designs[-1] ^ st.designs[-2]).any()
+
+
+def test_skin_start_keeps_the_lower_energy_of_both_starts():
+    """With ``skin_start`` an iteration solves every state from the last equilibrium and
+    from the skin-tight garment in one batch and keeps, per state, the lower-energy
+    solution under the state's own name: the same as solving the two starts apart."""
+    import dataclasses
+
+    from kgarment.design.loop import iterate, solve
+
+    setup, _ = _sheet_setup(max_iterations=4)
+    setup = dataclasses.replace(setup, skin_start=True)
+    st = iterate(setup, iterate(setup, initial_state(setup)))
+    solved = solve(setup, st)
+    states = [s for _, s in setup.states()]
+    opts = setup.options(st.iteration, st.target)
+    warm = setup.solve(st.design, states, warm_start=[st.warm.get(s.name) for s in states], options=opts)
+    cold = setup.solve(st.design, states, options=opts)
+    assert all(r.converged for r in warm + cold)
+    assert any(w.convergence.iterations != c.convergence.iterations for w, c in zip(warm, cold))
+    for s, r, w, c in zip(states, solved.results, warm, cold):
+        best = w if w.total_energy <= c.total_energy else c
+        assert r.name == s.name
+        assert r.total_energy == best.total_energy and np.array_equal(r.x, best.x)

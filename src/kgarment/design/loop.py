@@ -5,8 +5,9 @@ One iteration (:func:`iterate`) is four steps, each a function of the frozen
 
 1. :func:`solve`: every state (motion x activation) for the current design, warm started
    from the previous iteration's equilibria (the last converged one per state; see
-   ``WARM_MAX_RESIDUAL``) and, with ``skin_start``, also from the skin-tight garment (the
-   lower-energy equilibrium kept) -> :class:`Solved` (equilibria, stored energies);
+   ``WARM_MAX_RESIDUAL``) and, with ``skin_start``, also from the skin-tight garment (both
+   starts in one batch of solves; the lower-energy equilibrium kept) -> :class:`Solved`
+   (equilibria, stored energies);
 2. :func:`metrics_row`: the iteration's metrics (area, objective and each motion's term
    of it, rho per state, islands, clutch ends, the tension each clutch carries in each ON
    state, solver effort);
@@ -29,6 +30,7 @@ relative energy density rho (method.md section 7) and of the objective.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from collections.abc import Callable
@@ -137,10 +139,16 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     keyed = setup.states()
     states = [s for _, s in keyed]
     opts = setup.options(st.iteration, st.target)
-    results = setup.solve(st.design, states, warm_start=[st.warm.get(s.name) for s in states], options=opts)
+    warm = [st.warm.get(s.name) for s in states]
     if setup.skin_start and st.warm:
-        cold = setup.solve(st.design, states, options=opts)
-        results = [pick_equilibrium(w, c).result for w, c in zip(results, cold)]
+        # both starts in one batch (as the evaluator does): the workers share the 2n solves
+        # instead of waiting for the slowest warm solve, then for the slowest cold one
+        skin = [dataclasses.replace(s, name=f"{s.name}@skin-tight") for s in states]
+        both = setup.solve(st.design, states + skin, warm_start=warm + [None] * len(states), options=opts)
+        results = [pick_equilibrium(w, dataclasses.replace(c, name=w.name)).result
+                   for w, c in zip(both[:len(states)], both[len(states):])]
+    else:
+        results = setup.solve(st.design, states, warm_start=warm, options=opts)
     factor = log_stiffness_derivative(st.design, setup.model.preset) / setup.model.preset.penal
     alpha, energy, stored = {}, {}, {}
     for (key, _), r in zip(keyed, results):
