@@ -251,6 +251,53 @@ def test_worker_processes_give_the_same_results():
             assert np.array_equal(a.x, b.x) and a.energy == b.energy
 
 
+INHERIT_SCRIPT = """
+import json, sys
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from test_sim_solver import tube_scene
+from kgarment.sim import SimState, SolverOptions, parallel, solve_states
+
+def scene():
+    model, motion = tube_scene("reference")
+    return model, [SimState.create(motion, [g], name=n) for g, n in ((0.0, "off"), (1.0, "on"))]
+
+model, states = scene()
+d = np.full(model.n_faces, 0.001)
+serial = solve_states(model, d, states)
+carried = []
+real_ref = parallel._ref
+def ref(obj, workers):
+    r = real_ref(obj, workers)
+    carried.append(r[1] is not None)
+    return r
+parallel._ref = ref
+same = []
+for m, s in ((model, states), (model, states), scene()):  # the first call forks the pool
+    par = solve_states(m, d, s, options=SolverOptions(workers=2))
+    same.append(all(np.array_equal(a.x, b.x) and a.energy == b.energy for a, b in zip(serial, par)))
+print(json.dumps({"carried": carried, "same": same}))
+"""
+
+
+def test_workers_inherit_the_objects_of_the_call_that_forks_them():
+    """A forked pool's workers inherit the model and states of the call that creates it:
+    those tasks carry only tokens; other objects (the same garment built again) travel
+    with their tasks.  Bit-identical to solving in this process either way.  In a fresh
+    interpreter, so that the pool is new and forked."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    r = subprocess.run([sys.executable, "-c", INHERIT_SCRIPT, str(Path(__file__).parent)], capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out["same"] == [True, True, True]
+    assert out["carried"] == [False] * 8 + [True] * 4
+
+
 def _blas_thread_counts():
     from threadpoolctl import threadpool_info
 
