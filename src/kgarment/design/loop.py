@@ -115,7 +115,8 @@ class Solved:
     state;  options : the solver options used;  coarse : solved to the evolution tolerance;
     unconverged : names of the states that did not converge;  energy : {StateKey: J stored
     in the reinforced faces (and clutches)};  stored : {StateKey: Stored};  alpha : {StateKey:
-    (m,) element sensitivities}.
+    (m,) element sensitivities};  newton_iterations : of every solve, both starts with
+    ``skin_start``.
     """
 
     keys: list[StateKey]
@@ -127,6 +128,7 @@ class Solved:
     energy: dict[StateKey, float]
     stored: dict[StateKey, Stored]
     alpha: dict[StateKey, np.ndarray]
+    newton_iterations: int
 
 
 def initial_state(setup: DesignSetup) -> LoopState:
@@ -148,7 +150,7 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
         results = [pick_equilibrium(w, dataclasses.replace(c, name=w.name)).result
                    for w, c in zip(both[:len(states)], both[len(states):])]
     else:
-        results = setup.solve(st.design, states, warm_start=warm, options=opts)
+        results = both = setup.solve(st.design, states, warm_start=warm, options=opts)
     factor = log_stiffness_derivative(st.design, setup.model.preset) / setup.model.preset.penal
     alpha, energy, stored = {}, {}, {}
     for (key, _), r in zip(keyed, results):
@@ -157,7 +159,8 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
         stored[key] = s
         energy[key] = float(s.face_energy[st.design > 0.5].sum() + s.clutch_energy)
     return Solved([k for k, _ in keyed], states, results, opts, opts is not setup.solver,
-                  [r.name for r in results if not r.converged], energy, stored, alpha)
+                  [r.name for r in results if not r.converged], energy, stored, alpha,
+                  int(sum(r.convergence.iterations for r in both)))
 
 
 def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved,
@@ -207,7 +210,7 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
         "iteration": st.iteration, "area": frac, "target": st.target, "objective": obj,
         **{k: shape[k] for k in ("islands", "islands_with_clutches", "clutch_ends_supported", "clutch_ends")},
         "unconverged_states": ";".join(solved.unconverged), "seconds": 0.0,
-        "newton_iterations": int(sum(r.convergence.iterations for r in solved.results)),
+        "newton_iterations": solved.newton_iterations,
         "solver_tol": solved.options.tol,
     }
     row.update({TERM.format(m): v for m, v in terms.items()})
