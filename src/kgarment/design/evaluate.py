@@ -144,6 +144,18 @@ def pick_equilibrium(a: StateResult, b: StateResult) -> Equilibrium:
     return Equilibrium(keep, other if apart else None)
 
 
+def solve_two_starts(setup: DesignSetup, design: np.ndarray, states: list[SimState], starts: list,
+                     options=None) -> tuple[list[StateResult], list[StateResult]]:
+    """``states`` solved for ``design`` (m,) from ``starts`` (per state (N, 3) positions or
+    None) and from the skin-tight garment, in one batch (the workers share the 2n solves
+    instead of waiting twice for the slowest); returns (from ``starts``, from skin-tight),
+    both under the states' own names.  ``options``: the setup's solver options unless given."""
+    n = len(states)
+    skin = [dataclasses.replace(s, name=f"{s.name}@skin-tight") for s in states]
+    both = setup.solve(design, list(states) + skin, warm_start=list(starts) + [None] * n, options=options)
+    return both[:n], [dataclasses.replace(r, name=s.name) for r, s in zip(both[n:], states)]
+
+
 class Evaluator:
     """Evaluates designs of one garment (see the module docstring).
 
@@ -221,11 +233,8 @@ class Evaluator:
         states = [s for _, s in keyed]
         setup = self.setup
         starts = [r.x for r in self.reference(keyed)] if starts is None else list(starts)
-        # both starts in one batch: the workers share 2n solves instead of waiting twice for the slowest
-        skin = [dataclasses.replace(s, name=f"{s.name}@skin-tight") for s in states]
-        both = setup.solve(design, skin + states, warm_start=[None] * len(states) + starts)
-        cold = [dataclasses.replace(r, name=s.name) for r, s in zip(both[:len(states)], states)]
-        out = [pick_equilibrium(a, b) for a, b in zip(cold, both[len(states):])]
+        from_starts, cold = solve_two_starts(setup, design, states, starts)
+        out = [pick_equilibrium(a, b) for a, b in zip(cold, from_starts)]
         for i, e in enumerate(out):
             if not e.result.converged and any(a > 0 for a in states[i].activation):
                 r = activation_continuation(setup, design, states[i])

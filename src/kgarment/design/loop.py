@@ -30,7 +30,6 @@ relative energy density rho (method.md section 7) and of the objective.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import time
 from collections.abc import Callable
@@ -40,7 +39,7 @@ import numpy as np
 
 from kgarment.design.beso import converged, design_values, next_target, settled_ar, update_design
 from kgarment.design.connect import connect_design
-from kgarment.design.evaluate import pick_equilibrium
+from kgarment.design.evaluate import pick_equilibrium, solve_two_starts
 from kgarment.design.guard import REJECTED, TERM, boosted, guard_step, last_accepted, terms_of
 from kgarment.design.metrics import Stored, relative_energy_density
 from kgarment.design.objective import (
@@ -143,12 +142,9 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     opts = setup.options(st.iteration, st.target)
     warm = [st.warm.get(s.name) for s in states]
     if setup.skin_start and st.warm:
-        # both starts in one batch (as the evaluator does): the workers share the 2n solves
-        # instead of waiting for the slowest warm solve, then for the slowest cold one
-        skin = [dataclasses.replace(s, name=f"{s.name}@skin-tight") for s in states]
-        both = setup.solve(st.design, states + skin, warm_start=warm + [None] * len(states), options=opts)
-        results = [pick_equilibrium(w, dataclasses.replace(c, name=w.name)).result
-                   for w, c in zip(both[:len(states)], both[len(states):])]
+        warm_results, cold = solve_two_starts(setup, st.design, states, warm, opts)
+        results = [pick_equilibrium(w, c).result for w, c in zip(warm_results, cold)]
+        both = warm_results + cold
     else:
         results = both = setup.solve(st.design, states, warm_start=warm, options=opts)
     factor = log_stiffness_derivative(st.design, setup.model.preset) / setup.model.preset.penal

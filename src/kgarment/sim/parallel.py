@@ -53,14 +53,11 @@ def _pool(workers: int, objects=()) -> ProcessPoolExecutor:
         method = "fork" if "fork" in methods else "spawn"
         if SparseCholesky.openmp_used and "forkserver" in methods:
             method = "forkserver"  # a fork would inherit OpenMP's threads as dead (assembly doc)
-        inherited = set()
         if method == "fork":  # every worker forks at the first submit, after this (concurrent.futures)
-            for obj in objects:
-                _REGISTRY[id(obj)] = obj  # held for the pool's life, so the id stays this object's
-                inherited.add(id(obj))
+            _REGISTRY.update((id(obj), obj) for obj in objects)  # held for the pool's life: the ids stay theirs
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method), initializer=_init_worker)
         _POOLS[workers] = pool
-        _INHERITED[workers] = frozenset(inherited)
+        _INHERITED[workers] = frozenset(_REGISTRY) if method == "fork" else frozenset()  # a fork copies all
     return pool
 
 
