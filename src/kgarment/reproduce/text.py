@@ -152,6 +152,23 @@ PRESET_WORDS = {"paper": "the paper's text: plain cloth 0.5 MPa, reinforced 0.5 
                 "reference": "the paper's reference code: 0.5 / 5.7 / 25.7 MPa"}
 
 
+def preset_note(doc: dict) -> str:
+    """The report's words on its material preset: what it is, how strongly switching the
+    clutches changes what the wearer works against in this report's designs (garment
+    energy ON over OFF, the range over every motion of *ours*), and where the choice of
+    the examples' default is argued (README.md, "Which material preset reproduces the
+    paper?", both presets reproduced)."""
+    preset = doc.get("preset", "paper")
+    words = PRESET_WORDS.get(preset, "")
+    ratios = [g["energy_on_J"] / g["energy_off_J"] for e in doc["experiments"].values()
+              for g in e["evaluations"]["ours"].get("garment", []) if g["energy_off_J"] > 0]
+    switch = (f"; switching the clutches on multiplies what the wearer works against (the garment's energy) "
+              f"by {min(ratios):.1f}-{max(ratios):.1f} in our designs" if ratios else "")
+    default = "the examples' default" if preset == "paper" else "not the examples' default (`paper`)"
+    return f" ({words}{switch}; {default}, why: README.md, \"Which material preset reproduces the paper?\")"
+
+
+
 def performance_rows(doc: dict) -> list[str]:
     """Tables: time per experiment, growth with motions, benchmark figures if recorded."""
     rows = []
