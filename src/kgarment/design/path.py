@@ -222,57 +222,89 @@ def _anchor_target(evaluator, design, motions, frames, by_motion, state, results
     """The last frame is the target pose: where the evaluator's equilibrium there (its two
     starts, :meth:`kgarment.design.Evaluator.solve_design`) has less energy than the path's,
     it replaces the last frame and the frames before are re-solved backwards, each from the
-    next one's equilibrium, as long as that lowers their energy.  Returns the keys replaced."""
+    next one's equilibrium, as long as that lowers their energy.  The backward sweeps of all
+    (motion, state) paths go step by step together, one batch of solves per step (the
+    workers share them; each path's sweep is what it would be alone).  Returns the keys
+    replaced."""
     setup, model = evaluator.setup, evaluator.setup.model
     keys = [(m, s) for m in motions for s in STATES]
     # keyed like the evaluator's own target states: the same pose, so its equilibria there
     # (and its fully reinforced references) are reused and its numbers are the path's end
     targets = [((m, s), state(by_motion[m][-1][0], m, s)) for m, s in keys]
-    replaced = set()
+    replaced, sweep = set(), {}  # sweep: (motion, state) -> the frame to re-solve next
+    last = frames - 1
     for (m, s), r in zip(keys, evaluator.equilibria(design, targets)):
-        last = frames - 1
         if not (r.converged and r.total_energy < results[(m, s, last)].total_energy * (1 - MULTISTABLE)):
             continue
         results[(m, s, last)] = r
         replaced.add((m, s, last))
-        for i in range(last - 1, -1, -1):
-            again = solve_states(model, design, [state(by_motion[m][i][0], m, s)], warm_start=[results[(m, s, i + 1)].x],
-                                 options=setup.solver)[0]
-            if not (again.converged and again.total_energy < results[(m, s, i)].total_energy * (1 - 1e-9)):
-                break
-            results[(m, s, i)] = again
-            replaced.add((m, s, i))
+        if last > 0:
+            sweep[(m, s)] = last - 1
         log.info("%s[%s]: the path's end was above the target's equilibrium (%.4g J); re-solved backwards", m, s,
                  r.total_energy)
+    while sweep:
+        items = list(sweep.items())
+        again = solve_states(model, design, [state(by_motion[m][i][0], m, s) for (m, s), i in items],
+                             warm_start=[results[(m, s, i + 1)].x for (m, s), i in items], options=setup.solver)
+        sweep = {}
+        for ((m, s), i), a in zip(items, again):
+            if a.converged and a.total_energy < results[(m, s, i)].total_energy * (1 - 1e-9):
+                results[(m, s, i)] = a
+                replaced.add((m, s, i))
+                if i > 0:
+                    sweep[(m, s)] = i - 1
     return replaced
 
 
 def _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results) -> set:
     """Where the energy drops by more than PATH_JUMP from frame i - 1 to frame i, re-solve
     frame i - 1 from frame i's equilibrium and from the evaluator's two starts, and keep the
-    lowest-energy converged equilibrium.  Returns the (motion, state, frame) keys replaced."""
+    lowest-energy converged equilibrium.  Every (motion, state) path is repaired on its own
+    (:func:`_jump_repairs`); their solves go in one batch per step.  Returns the (motion,
+    state, frame) keys replaced."""
     model, options = evaluator.setup.model, evaluator.setup.solver
-    replaced = set()
+    replaced: set = set()
+    pending = {}
     for m in motions:
         for s in STATES:
-            for _ in range(frames):  # a replaced frame can expose a drop before it
-                drops = [i for i in range(1, frames) if results[(m, s, i)].total_energy
-                         < (1.0 - PATH_JUMP) * results[(m, s, i - 1)].total_energy]
-                fixed = False
-                for i in reversed(drops):
-                    label = by_motion[m][i - 1][0]
-                    st = state(label, m, s)
-                    tries = solve_states(model, design, [st], warm_start=[results[(m, s, i)].x], options=options)
-                    tries += evaluator.equilibria(design, [((label, s), st)])
-                    best = min((r for r in tries if r.converged), key=lambda r: r.total_energy, default=None)
-                    if best is not None and best.total_energy < results[(m, s, i - 1)].total_energy * (1 - 1e-9):
-                        results[(m, s, i - 1)] = best
-                        replaced.add((m, s, i - 1))
-                        fixed = True
-                        log.info("%s[%s]: frame %d re-solved (%.4g J)", m, s, i, best.total_energy)
-                if not fixed:
-                    break
+            gen = _jump_repairs(m, s, frames, by_motion, state, results, replaced)
+            ask = next(gen, None)
+            if ask is not None:
+                pending[(m, s)] = (gen, ask)
+    while pending:
+        keys = list(pending)
+        asks = [pending[k][1] for k in keys]  # (state, warm start, evaluator key)
+        warm = solve_states(model, design, [a[0] for a in asks], warm_start=[a[1] for a in asks], options=options)
+        starts = evaluator.equilibria(design, [(a[2], a[0]) for a in asks])
+        for k, w, e in zip(keys, warm, starts):
+            gen = pending.pop(k)[0]
+            try:
+                pending[k] = (gen, gen.send([w, e]))
+            except StopIteration:
+                pass
     return replaced
+
+
+def _jump_repairs(m, s, frames, by_motion, state, results, replaced):
+    """The repairs of one (motion, state) path, as a generator: yields (SimState, warm start
+    (N, 3), evaluator key) for each frame to re-solve and receives the equilibria found from
+    the warm start and the evaluator's starts; updates ``results`` and ``replaced``."""
+    for _ in range(frames):  # a replaced frame can expose a drop before it
+        drops = [i for i in range(1, frames) if results[(m, s, i)].total_energy
+                 < (1.0 - PATH_JUMP) * results[(m, s, i - 1)].total_energy]
+        fixed = False
+        for i in reversed(drops):
+            label = by_motion[m][i - 1][0]
+            st = state(label, m, s)
+            tries = yield st, results[(m, s, i)].x, (label, s)
+            best = min((r for r in tries if r.converged), key=lambda r: r.total_energy, default=None)
+            if best is not None and best.total_energy < results[(m, s, i - 1)].total_energy * (1 - 1e-9):
+                results[(m, s, i - 1)] = best
+                replaced.add((m, s, i - 1))
+                fixed = True
+                log.info("%s[%s]: frame %d re-solved (%.4g J)", m, s, i, best.total_energy)
+        if not fixed:
+            return
 
 
 def path_plot(report: PathReport, path, title: str = "") -> Path:
