@@ -74,7 +74,12 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     ours = design_run(problem, out / "runs" / exp.name, device, progress)
     comp = design_run(experiment_problem(exp, res, "compliance", overrides), out / "runs" / f"{exp.name}-compliance",
                       device, progress)
-    phases = {"designs": time.time() - t0}  # wall seconds per phase in this session (reused work: ~0)
+    phases: dict[str, float] = {}  # wall seconds per phase in this session (reused work: ~0)
+
+    def lap(phase: str) -> None:  # the time since the last phase ended is this one's
+        phases[phase] = time.time() - t0 - sum(phases.values())
+
+    lap("designs")
     ev = CachedEvaluator(problem, f"{exp.name}@{res.name}", cache, device)
     budget = problem.design.beso.target_area
     g = ev.garment
@@ -97,10 +102,10 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         log.info("%s: evaluating the %s design", exp.name, kind)
         # clutch loads where the report and the targets read them: ours against the manual baseline
         entry["evaluations"][kind] = ev.evaluate(d, kind, loads=kind in ("ours", "manual"))
-    phases["evaluations"] = time.time() - t0 - sum(phases.values())
+    lap("evaluations")
     if exp.multi and len(ev.strips) <= PLAN_CLUTCHES:
         entry["plan"] = ev.plan(ours.design)
-    phases["plan"] = time.time() - t0 - sum(phases.values())
+    lap("plan")
     if res.path_frames > 0:
         entry["path"] = {}
         for kind in PATH_DESIGNS:
@@ -108,10 +113,10 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
             entry["path"][kind] = ev.path(designs[kind], res.path_frames)
         entry["images"]["force"] = "img/" + force_figure(img / f"{exp.name}_force.png", entry["path"],
                                                          f"{exp.name}: force over the motion").name
-    phases["paths"] = time.time() - t0 - sum(phases.values())
+    lap("paths")
     entry["evaluations"]["random"] = [ev.evaluate(random_design(g.rest_vertices, g.faces, budget, seed), f"random {seed}")
                                       for seed in range(res.seeds)]
-    phases["random"] = time.time() - t0 - sum(phases.values())
+    lap("random")
     for kind in ("ours", "compliance", "manual"):
         entry["images"][kind] = "img/" + _render_design(img / f"{exp.name}_{kind}.png", ev, designs[kind],
                                                         f"{exp.name}: {kind}")
@@ -119,8 +124,8 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     if prog.is_file():
         (img / f"{exp.name}_progress.png").write_bytes(prog.read_bytes())
         entry["images"]["progress"] = f"img/{exp.name}_progress.png"
-    entry["wall_seconds"] = time.time() - t0
-    phases["renders"] = entry["wall_seconds"] - sum(phases.values())
+    lap("renders")
+    entry["wall_seconds"] = sum(phases.values())
     entry["phase_seconds"] = phases
     log.info("%s: done in %.1f min (%s)", exp.name, entry["wall_seconds"] / 60,
              ", ".join(f"{k} {v / 60:.1f}" for k, v in phases.items()))

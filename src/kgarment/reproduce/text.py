@@ -162,11 +162,11 @@ def preset_note(doc: dict) -> str:
     words = PRESET_WORDS.get(preset, "")
     ratios = [g["energy_on_J"] / g["energy_off_J"] for e in doc["experiments"].values()
               for g in e["evaluations"]["ours"].get("garment", []) if g["energy_off_J"] > 0]
-    switch = (f"; switching the clutches on multiplies what the wearer works against (the garment's energy) "
+    switch = (f"switching the clutches on multiplies what the wearer works against (the garment's energy) "
               f"by {min(ratios):.1f}-{max(ratios):.1f} in our designs" if ratios else "")
     default = "the examples' default" if preset == "paper" else "not the examples' default (`paper`)"
-    return f" ({words}{switch}; {default}, why: README.md, \"Which material preset reproduces the paper?\")"
-
+    parts = [words, switch, f"{default}, why: README.md, \"Which material preset reproduces the paper?\""]
+    return " (" + "; ".join(p for p in parts if p) + ")"
 
 
 def performance_rows(doc: dict) -> list[str]:
