@@ -7,7 +7,9 @@ with clutches ON and OFF.  For the sleeve and the three-motion shirt, every desi
 group is also evaluated on the multi-motion problem (the paper's Table 1).  Everything
 lands in ``OUT/data.json`` (its summary in ``OUT/results.json``, :func:`summary`); runs and
 evaluations are reused when ``reproduce`` runs
-again, so an interrupted run continues.
+again, so an interrupted run continues.  ``data.json`` accumulates: experiments run into the
+same folder by earlier invocations (``--experiments``) are kept, so a reproduction too long
+for one sitting is done a few experiments at a time (:func:`previous_results`).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from kgarment.design import design_values
+from kgarment.errors import KgarmentError
 from kgarment.io import atomic_write_text
 from kgarment.render import render_design
 from kgarment.reproduce.baselines import anchor_rings, manual_design, random_design
@@ -125,6 +128,8 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         (img / f"{exp.name}_progress.png").write_bytes(prog.read_bytes())
         entry["images"]["progress"] = f"img/{exp.name}_progress.png"
     lap("renders")
+    entry["run"]["objectives_at_target"] = [r["objective"] for r in ours.metrics if abs(r["area"] - budget) < 0.01
+                                            and not r["unconverged_states"]]
     entry["wall_seconds"] = sum(phases.values())
     entry["phase_seconds"] = phases
     log.info("%s: done in %.1f min (%s)", exp.name, entry["wall_seconds"] / 60,
@@ -140,7 +145,8 @@ def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationC
     multi = MULTI_OF_GROUP.get(group)
     if multi is None or multi not in results:
         return None
-    singles = [e for e in results.values() if e["group"] == group and not e["multi"]]
+    singles = [e for e in results.values() if e["group"] == group and not e["multi"]
+               and (out / "designs" / f"{e['name']}.npz").is_file()]
     if not singles:
         return None
     ev = CachedEvaluator(experiment_problem(BY_NAME[multi], res, overrides=overrides), f"{multi}@{res.name}", cache, device)
@@ -168,10 +174,17 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
         (out / sub).mkdir(parents=True, exist_ok=True)
     cache = EvaluationCache(out / "evaluations.json")
     t0 = time.time()
+    kept = previous_results(out, res, overrides, exclude={e.name for e in exps})
+    if kept:
+        log.info("kept from %s: %s", out / DATA, ", ".join(kept))
     results: dict = {}
-    for exp in exps:
-        log.info("experiment %s (%s resolution)", exp.name, res.name)
-        results[exp.name] = run_experiment(exp, res, out, cache, device, progress, overrides)
+    asked = {e.name for e in exps}
+    for exp in select(None):  # the canonical order, earlier invocations' experiments included
+        if exp.name in asked:
+            log.info("experiment %s (%s resolution)", exp.name, res.name)
+            results[exp.name] = run_experiment(exp, res, out, cache, device, progress, overrides)
+        elif exp.name in kept:
+            results[exp.name] = kept[exp.name]
     cross = {}
     for group in ("sleeve", "shirt"):
         m = cross_evaluate(group, results, res, out, cache, device, overrides)
@@ -186,6 +199,35 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
     atomic_write_text(out / DATA, json.dumps(doc, indent=1))
     atomic_write_text(out / "results.json", json.dumps(summary(doc), indent=1))
     return doc
+
+
+def previous_results(out: Path, res, overrides: dict | None, exclude: set[str]) -> dict:
+    """{name: entry} of ``out/data.json``'s experiments not in ``exclude``, when they were
+    made at resolution ``res`` with the material preset and clutch model that ``overrides``
+    give them now (else :class:`KgarmentError`: mixing them would make one report of two
+    reproductions); {} without a data.json."""
+    path = Path(out) / DATA
+    if not path.is_file():
+        return {}
+    try:
+        doc = json.loads(path.read_text())
+        old_res, old = doc["resolution"]["name"], doc["experiments"]
+    except (ValueError, KeyError, TypeError) as err:
+        raise KgarmentError(f"{path} is not a reproduction's data ({err}); give another --out") from None
+    if old_res != res.name:
+        raise KgarmentError(f"{path} holds a {old_res}-resolution reproduction, not {res.name}; give another --out")
+    kept = {}
+    for name, e in old.items():
+        if name in exclude or name not in BY_NAME:
+            continue
+        p = experiment_problem(BY_NAME[name], res, overrides=overrides)
+        now = (p.materials.preset, p.clutch_spec().hardware.model)
+        then = (e.get("preset", "paper"), e.get("clutch_model", "locked"))
+        if now != then:
+            raise KgarmentError(f"{path}: {name} was made with preset / clutch model {then[0]} / {then[1]}, not "
+                                f"{now[0]} / {now[1]}; give another --out")
+        kept[name] = e
+    return kept
 
 
 def _design_summary(ev: dict) -> dict:

@@ -276,7 +276,7 @@ def write_report(out: Path, doc: dict | None = None) -> tuple[Path, Path]:
     for e in doc["experiments"].values():  # the objective once the budget is reached, from the run
         run = e.get("run", {})
         metrics = Path(run.get("folder", "")) / "metrics.json"
-        if metrics.is_file():
+        if "objectives_at_target" not in run and metrics.is_file():  # data.json from before 2026-11-25
             rows = json.loads(metrics.read_text())
             run["objectives_at_target"] = [r["objective"] for r in rows if abs(r["area"] - e["budget"]) < 0.01
                                            and not r["unconverged_states"]]
