@@ -54,9 +54,10 @@ def targets(doc: dict) -> list[str]:
             "attachment ring, widened to the budget: for arm extension that is nearly the load path BESO finds, so ours can "
             "match it but not beat it 1.5-fold.",
             "- Bend forward moves the arms too (the reference amounts: shoulder flexion and elbow), so the arm-band "
-            "path through the upper back clutch carries most of it.",
-            "- Preview resolution: 18 mm edges and doubled BESO steps; `--resolution default` is the comparison "
-            "that counts."]
+            "path through the upper back clutch carries most of it."]
+    if doc["resolution"]["name"] != "default":
+        out += ["- Preview resolution: 18 mm edges and doubled BESO steps; `--resolution default` is the comparison "
+                "that counts."]
     return out
 
 
@@ -162,8 +163,11 @@ def preset_note(doc: dict) -> str:
     words = PRESET_WORDS.get(preset, "")
     ratios = [g["energy_on_J"] / g["energy_off_J"] for e in doc["experiments"].values()
               for g in e["evaluations"]["ours"].get("garment", []) if g["energy_off_J"] > 0]
-    switch = (f"switching the clutches on multiplies what the wearer works against (the garment's energy) "
-              f"by {min(ratios):.1f}-{max(ratios):.1f} in our designs" if ratios else "")
+    switch = ""
+    if ratios:
+        lo, hi = f"{min(ratios):.1f}", f"{max(ratios):.1f}"
+        switch = ("switching the clutches on multiplies what the wearer works against (the garment's energy) by "
+                  f"{lo if lo == hi else f'{lo}-{hi}'} in our designs")
     default = "the examples' default" if preset == "paper" else "not the examples' default (`paper`)"
     parts = [words, switch, f"{default}, why: README.md, \"Which material preset reproduces the paper?\""]
     return " (" + "; ".join(p for p in parts if p) + ")"
