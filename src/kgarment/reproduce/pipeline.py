@@ -9,7 +9,8 @@ lands in ``OUT/data.json`` (its summary in ``OUT/results.json``, :func:`summary`
 evaluations are reused when ``reproduce`` runs
 again, so an interrupted run continues.  ``data.json`` accumulates: experiments run into the
 same folder by earlier invocations (``--experiments``) are kept, so a reproduction too long
-for one sitting is done a few experiments at a time (:func:`previous_results`).
+for one sitting is done a few experiments at a time (:func:`previous_results`), and it is
+written after every experiment, so one that finished is never lost.
 """
 
 from __future__ import annotations
@@ -179,10 +180,14 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
         log.info("kept from %s: %s", out / DATA, ", ".join(kept))
     results: dict = {}
     asked = {e.name for e in exps}
-    for exp in select(None):  # the canonical order, earlier invocations' experiments included
+    order = [e.name for e in select(None)]  # the canonical order, earlier invocations' experiments included
+    for exp in select(None):
         if exp.name in asked:
             log.info("experiment %s (%s resolution)", exp.name, res.name)
             results[exp.name] = run_experiment(exp, res, out, cache, device, progress, overrides)
+            done = {n: results.get(n, kept.get(n)) for n in order if n in results or n in kept}
+            # an experiment finished is never lost; the cross-evaluations follow at the end
+            _write(out, _document(res, done, {}, t0, device))
         elif exp.name in kept:
             results[exp.name] = kept[exp.name]
     cross = {}
@@ -190,15 +195,25 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
         m = cross_evaluate(group, results, res, out, cache, device, overrides)
         if m is not None:
             cross[group] = m
+    doc = _document(res, results, cross, t0, device)
+    _write(out, doc)
+    return doc
+
+
+def _document(res, results: dict, cross: dict, t0: float, device: str) -> dict:
+    """data.json's document from the experiments' entries and the cross-evaluations."""
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # this process; workers are alike
     presets = sorted({e["preset"] for e in results.values()})
-    doc = {"resolution": res.__dict__, "preset": ", ".join(presets),
-           "clutch_model": ", ".join(sorted({e.get("clutch_model", "locked") for e in results.values()})),
-           "experiments": results, "cross": cross,
-           "wall_seconds": time.time() - t0, "peak_rss_mb": peak, "device": device}
+    return {"resolution": res.__dict__, "preset": ", ".join(presets),
+            "clutch_model": ", ".join(sorted({e.get("clutch_model", "locked") for e in results.values()})),
+            "experiments": results, "cross": cross,
+            "wall_seconds": time.time() - t0, "peak_rss_mb": peak, "device": device}
+
+
+def _write(out: Path, doc: dict) -> None:
     atomic_write_text(out / DATA, json.dumps(doc, indent=1))
     atomic_write_text(out / "results.json", json.dumps(summary(doc), indent=1))
-    return doc
+
 
 
 def previous_results(out: Path, res, overrides: dict | None, exclude: set[str]) -> dict:
