@@ -60,12 +60,15 @@ def add_parsers(sub) -> None:
     sp.description = ("Design every experiment of the paper (" + ", ".join(e.name for e in EXPERIMENTS) + "), "
                       "the compliance, manual, fully reinforced and random baselines at the same budget, the "
                       "cross-evaluation of the sleeve and shirt designs, and a report with tables and pictures. "
-                      "Runs and evaluations are kept in OUT and reused: run it again to continue.")
+                      "Runs and evaluations are kept in OUT and reused: run it again to continue. OUT/data.json "
+                      "accumulates: --experiments adds to the experiments already there (same resolution and preset), "
+                      "so a long reproduction can be done a few experiments at a time.")
     sp.add_argument("--resolution", default="preview", choices=tuple(RESOLUTIONS),
                     help="tiny: a smoke run (3 iterations); preview (default): subdivision 0, the target "
                          "shrinking by 3%% per iteration; default: the example files as they are (subdivision 1)")
     sp.add_argument("--out", default="runs/reproduce", help="output folder (default runs/reproduce)")
-    sp.add_argument("--experiments", help="comma-separated subset of experiments (default: all)")
+    sp.add_argument("--experiments", help="comma-separated subset of experiments (default: all); those already "
+                    "in OUT are kept in the report")
     sp.add_argument("--preset", choices=C.PRESET_NAMES, help="material preset of every experiment (default: the "
                     "example files', paper); give each preset its own --out")
     sp.add_argument("--report-only", action="store_true", help="rewrite the report from OUT/data.json")
