@@ -171,22 +171,27 @@ def test_a_reproduction_folder_keeps_only_its_own_resolution_and_preset(tmp_path
     material presets in one report."""
     from kgarment.errors import KgarmentError
     from kgarment.reproduce.catalog import RESOLUTIONS
-    from kgarment.reproduce.pipeline import previous_results
+    from kgarment.reproduce.pipeline import previous_results, run_again
 
     tiny = RESOLUTIONS["tiny"]
-    assert previous_results(tmp_path, tiny, None, set()) == {}
+    assert previous_results(tmp_path, tiny, None) == {}
     entry = {"name": "arm_extension", "preset": "paper", "clutch_model": "locked"}
     doc = {"resolution": {"name": "tiny"}, "experiments": {"arm_extension": entry, "arm_flexion": dict(entry)}}
     (tmp_path / "data.json").write_text(json.dumps(doc))
-    assert previous_results(tmp_path, tiny, None, set()) == doc["experiments"]
-    assert list(previous_results(tmp_path, tiny, {"preset": None}, {"arm_flexion"})) == ["arm_extension"]
+    assert previous_results(tmp_path, tiny, {"preset": None}) == doc["experiments"]
     with pytest.raises(KgarmentError, match="preset / clutch model paper / locked, not reference / locked"):
-        previous_results(tmp_path, tiny, {"preset": "reference"}, set())
+        previous_results(tmp_path, tiny, {"preset": "reference"})
     with pytest.raises(KgarmentError, match="holds a tiny-resolution reproduction, not preview"):
-        previous_results(tmp_path, RESOLUTIONS["preview"], None, set())
+        previous_results(tmp_path, RESOLUTIONS["preview"], None)
+    # a committed report (entries without run folders) is continued, not redone, unless named
+    assert not run_again("arm_extension", False, doc["experiments"], tmp_path)
+    assert run_again("arm_extension", True, doc["experiments"], tmp_path)
+    assert run_again("arms_raise", False, doc["experiments"], tmp_path)
+    (tmp_path / "runs" / "arm_extension").mkdir(parents=True)
+    assert run_again("arm_extension", False, doc["experiments"], tmp_path)  # reuses its run folder
     (tmp_path / "data.json").write_text("{}")
     with pytest.raises(KgarmentError, match="not a reproduction's data"):
-        previous_results(tmp_path, tiny, None, set())
+        previous_results(tmp_path, tiny, None)
 
 
 def _plan(rows):

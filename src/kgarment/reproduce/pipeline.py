@@ -9,7 +9,8 @@ lands in ``OUT/data.json`` (its summary in ``OUT/results.json``, :func:`summary`
 evaluations are reused when ``reproduce`` runs
 again, so an interrupted run continues.  ``data.json`` accumulates: experiments run into the
 same folder by earlier invocations (``--experiments``) are kept, so a reproduction too long
-for one sitting is done a few experiments at a time (:func:`previous_results`), and it is
+for one sitting is done a few experiments at a time (:func:`previous_results`,
+:func:`run_again`), and it is
 written after every experiment, so one that finished is never lost.
 """
 
@@ -175,21 +176,19 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
         (out / sub).mkdir(parents=True, exist_ok=True)
     cache = EvaluationCache(out / "evaluations.json")
     t0 = time.time()
-    kept = previous_results(out, res, overrides, exclude={e.name for e in exps})
-    if kept:
-        log.info("kept from %s: %s", out / DATA, ", ".join(kept))
+    old = previous_results(out, res, overrides)
     results: dict = {}
     asked = {e.name for e in exps}
-    order = [e.name for e in select(None)]  # the canonical order, earlier invocations' experiments included
-    for exp in select(None):
-        if exp.name in asked:
+    for exp in select(None):  # the canonical order, earlier invocations' experiments included
+        if exp.name in asked and run_again(exp.name, bool(experiments), old, out):
             log.info("experiment %s (%s resolution)", exp.name, res.name)
             results[exp.name] = run_experiment(exp, res, out, cache, device, progress, overrides)
-            done = {n: results.get(n, kept.get(n)) for n in order if n in results or n in kept}
+            done = {n: results.get(n, old.get(n)) for n in (e.name for e in select(None)) if n in results or n in old}
             # an experiment finished is never lost; the cross-evaluations follow at the end
             _write(out, _document(res, done, {}, t0, device))
-        elif exp.name in kept:
-            results[exp.name] = kept[exp.name]
+        elif exp.name in old:
+            log.info("experiment %s: kept from %s", exp.name, out / DATA)
+            results[exp.name] = old[exp.name]
     cross = {}
     for group in ("sleeve", "shirt"):
         m = cross_evaluate(group, results, res, out, cache, device, overrides)
@@ -198,6 +197,14 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
     doc = _document(res, results, cross, t0, device)
     _write(out, doc)
     return doc
+
+
+def run_again(name: str, named: bool, old: dict, out: Path) -> bool:
+    """Whether ``reproduce`` runs experiment ``name`` (reusing what its folder holds): yes when
+    ``named`` in --experiments, when ``old`` (data.json's entries) lacks it, or when its run
+    folder is there; an entry whose run folders are not (a committed report) is kept as it is,
+    since running it again would redo its designs."""
+    return named or name not in old or (Path(out) / "runs" / name).is_dir()
 
 
 def _document(res, results: dict, cross: dict, t0: float, device: str) -> dict:
@@ -215,9 +222,8 @@ def _write(out: Path, doc: dict) -> None:
     atomic_write_text(out / "results.json", json.dumps(summary(doc), indent=1))
 
 
-
-def previous_results(out: Path, res, overrides: dict | None, exclude: set[str]) -> dict:
-    """{name: entry} of ``out/data.json``'s experiments not in ``exclude``, when they were
+def previous_results(out: Path, res, overrides: dict | None) -> dict:
+    """{name: entry} of ``out/data.json``'s experiments, when they were
     made at resolution ``res`` with the material preset and clutch model that ``overrides``
     give them now (else :class:`KgarmentError`: mixing them would make one report of two
     reproductions); {} without a data.json."""
@@ -233,7 +239,7 @@ def previous_results(out: Path, res, overrides: dict | None, exclude: set[str]) 
         raise KgarmentError(f"{path} holds a {old_res}-resolution reproduction, not {res.name}; give another --out")
     kept = {}
     for name, e in old.items():
-        if name in exclude or name not in BY_NAME:
+        if name not in BY_NAME:
             continue
         p = experiment_problem(BY_NAME[name], res, overrides=overrides)
         now = (p.materials.preset, p.clutch_spec().hardware.model)
