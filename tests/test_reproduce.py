@@ -194,6 +194,18 @@ def test_a_reproduction_folder_keeps_only_its_own_resolution_and_preset(tmp_path
         previous_results(tmp_path, tiny, None)
 
 
+def test_an_experiment_run_again_keeps_what_it_took_before():
+    """Reused work costs ~0 s: the earlier invocations' phase times are added, not lost."""
+    from kgarment.reproduce.pipeline import _add_times
+
+    new = {"phase_seconds": {"designs": 1.0, "paths": 0.5}, "wall_seconds": 1.5}
+    before = {"phase_seconds": {"designs": 1674.0, "paths": 48.0, "random": 54.0}}
+    out = _add_times(new, before)
+    assert out["phase_seconds"] == {"designs": 1675.0, "paths": 48.5, "random": 54.0}
+    assert out["wall_seconds"] == 1777.5
+    assert _add_times({"phase_seconds": {"designs": 2.0}, "wall_seconds": 2.0}, None)["wall_seconds"] == 2.0
+
+
 def _plan(rows):
     """A clutch-set table as kgarment plan writes it: rows (motion, clutches, resistance J)."""
     return {"clutches": ["a", "b"], "keep": 0.9, "motions": {},

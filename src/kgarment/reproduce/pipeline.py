@@ -182,7 +182,8 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
     for exp in select(None):  # the canonical order, earlier invocations' experiments included
         if exp.name in asked and run_again(exp.name, bool(experiments), old, out):
             log.info("experiment %s (%s resolution)", exp.name, res.name)
-            results[exp.name] = run_experiment(exp, res, out, cache, device, progress, overrides)
+            results[exp.name] = _add_times(run_experiment(exp, res, out, cache, device, progress, overrides),
+                                           old.get(exp.name))
             done = {n: results.get(n, old.get(n)) for n in (e.name for e in select(None)) if n in results or n in old}
             # an experiment finished is never lost; the cross-evaluations follow at the end
             _write(out, _document(res, done, {}, t0, device))
@@ -205,6 +206,17 @@ def run_again(name: str, named: bool, old: dict, out: Path) -> bool:
     folder is there; an entry whose run folders are not (a committed report) is kept as it is,
     since running it again would redo its designs."""
     return named or name not in old or (Path(out) / "runs" / name).is_dir()
+
+
+def _add_times(entry: dict, before: dict | None) -> dict:
+    """``entry`` with the wall seconds of each phase spent on it by earlier invocations
+    (``before``, its data.json entry) added: a run again that reuses everything costs ~0 s
+    and must not hide what the experiment took."""
+    if before and before.get("phase_seconds"):
+        for k, v in before["phase_seconds"].items():
+            entry["phase_seconds"][k] = entry["phase_seconds"].get(k, 0.0) + v
+        entry["wall_seconds"] = sum(entry["phase_seconds"].values())
+    return entry
 
 
 def _document(res, results: dict, cross: dict, t0: float, device: str) -> dict:

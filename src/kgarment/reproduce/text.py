@@ -180,12 +180,14 @@ def performance_rows(doc: dict) -> list[str]:
         r = e["run"]
         rows.append([e["name"], str(e["faces"]), str(len(e["motions"])), str(e["states"]), str(r["iterations"]),
                      f"{r['seconds'] / 60:.1f}", f"{r['seconds_per_iteration']:.1f}",
-                     f"{r['newton_per_iteration'] / max(e['states'], 1):.0f}", str(r["unconverged_iterations"])])
-    out = [f"Measured on this machine ({doc.get('device', 'cpu')}); the whole reproduction took "
-           f"{doc['wall_seconds'] / 60:.0f} min in its last session, peak memory {doc['peak_rss_mb']:.0f} MB per "
-           "process.", ""]
+                     f"{r['newton_per_iteration'] / max(e['states'], 1):.0f}", str(r["unconverged_iterations"]),
+                     f"{e['wall_seconds'] / 60:.0f}" if e.get("wall_seconds") else "–"])
+    out = [f"Measured on this machine ({doc.get('device', 'cpu')}); the last session of the reproduction took "
+           f"{doc['wall_seconds'] / 60:.0f} min, peak memory {doc['peak_rss_mb']:.0f} MB per process. *minutes*: "
+           "our design run; *experiment*: everything the experiment took (both design runs, the evaluations, "
+           "the force paths, the random designs, the renders), over every session that worked on it.", ""]
     out += md_table(["experiment", "faces", "motions", "states", "iterations", "minutes", "s / iteration",
-                   "Newton its / state / iteration", "iterations with unconverged states"], rows)
+                     "Newton its / state / iteration", "iterations with unconverged states", "experiment (min)"], rows)
     shirt = [e for e in doc["experiments"].values() if e["group"] in ("shirt", "long_sleeve")]
     if shirt:
         by_n: dict[int, list] = {}
