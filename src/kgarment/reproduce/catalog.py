@@ -10,6 +10,13 @@ from kgarment.errors import KgarmentError
 DATA = "data.json"  # in a reproduction folder: everything the report shows (results.json: its summary)
 
 
+def objectives_at_target(rows, budget: float) -> list[float]:
+    """A design run's objective at every iteration (metrics ``rows``) within 1% of the
+    ``budget`` area whose states all converged: what the report says of the run once it
+    reached its target."""
+    return [r["objective"] for r in rows if abs(r["area"] - budget) < 0.01 and not r["unconverged_states"]]
+
+
 @dataclass(frozen=True)
 class Resolution:
     """subdivision : garment level (None: the example's); er : BESO's evolution ratio (None:

@@ -30,6 +30,7 @@ from kgarment.errors import KgarmentError
 from kgarment.io import atomic_write_text
 from kgarment.render import render_design
 from kgarment.reproduce.baselines import anchor_rings, manual_design, random_design
+from kgarment.reproduce.catalog import objectives_at_target
 from kgarment.reproduce.evaluate import CachedEvaluator, EvaluationCache
 from kgarment.reproduce.experiments import (
     BY_NAME,
@@ -130,8 +131,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         (img / f"{exp.name}_progress.png").write_bytes(prog.read_bytes())
         entry["images"]["progress"] = f"img/{exp.name}_progress.png"
     lap("renders")
-    entry["run"]["objectives_at_target"] = [r["objective"] for r in ours.metrics if abs(r["area"] - budget) < 0.01
-                                            and not r["unconverged_states"]]
+    entry["run"]["objectives_at_target"] = objectives_at_target(ours.metrics, budget)
     entry["wall_seconds"] = sum(phases.values())
     entry["phase_seconds"] = phases
     log.info("%s: done in %.1f min (%s)", exp.name, entry["wall_seconds"] / 60,
@@ -184,7 +184,7 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
             log.info("experiment %s (%s resolution)", exp.name, res.name)
             results[exp.name] = _add_times(run_experiment(exp, res, out, cache, device, progress, overrides),
                                            old.get(exp.name))
-            done = {n: results.get(n, old.get(n)) for n in (e.name for e in select(None)) if n in results or n in old}
+            done = {n: results[n] if n in results else old[n] for n in BY_NAME if n in results or n in old}
             # an experiment finished is never lost; the cross-evaluations follow at the end
             _write(out, _document(res, done, {}, t0, device))
         elif exp.name in old:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kgarment.reproduce.catalog import DATA, EXPERIMENTS, PAPER_SHIRT_MATRIX
+from kgarment.reproduce.catalog import DATA, EXPERIMENTS, PAPER_SHIRT_MATRIX, objectives_at_target
 from kgarment.reproduce.figures import emergent_figure, force_stats, rho_bars
 from kgarment.reproduce.text import (
     assessment,
@@ -277,9 +277,7 @@ def write_report(out: Path, doc: dict | None = None) -> tuple[Path, Path]:
         run = e.get("run", {})
         metrics = Path(run.get("folder", "")) / "metrics.json"
         if "objectives_at_target" not in run and metrics.is_file():  # data.json from before 2026-11-25
-            rows = json.loads(metrics.read_text())
-            run["objectives_at_target"] = [r["objective"] for r in rows if abs(r["area"] - e["budget"]) < 0.01
-                                           and not r["unconverged_states"]]
+            run["objectives_at_target"] = objectives_at_target(json.loads(metrics.read_text()), e["budget"])
     figures = {}
     if doc["experiments"]:
         figures["rho_bars"] = rho_bars(out / "img" / "rho_on.png", doc)
