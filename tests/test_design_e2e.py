@@ -116,9 +116,13 @@ def test_force_over_the_motion(runs, anny_body, capsys):
     target = ev.setup.motions["arm_flexion.right"]
     np.testing.assert_allclose(motions[index[-1][0]].garment_x0, target.garment_x0, atol=1e-9)
     assert not np.allclose(motions[index[0][0]].garment_x0, target.garment_x0, atol=1e-3)
-    assert main(["-q", "evaluate", str(cli), "--path", "2", "--no-loads"]) == 0
+    assert main(["-q", "evaluate", str(cli), "--path", "2", "--no-loads", "--json", str(cli / "with-path.json")]) == 0
     (written,) = [p for p in cli.glob("path-*.json") if not p.stem.endswith("-slip")]  # path-ITERATION
     doc = json.loads(written.read_text())
+    # the evaluation comes after the path, whose ends competed with the two starts
+    # (tests/test_design_pick.py); each row says which was kept
+    rows = json.loads((cli / "with-path.json").read_text())["rows"]
+    assert {r["state"] for r in rows} == {"on", "off"} and all(isinstance(r["from_path"], bool) for r in rows)
     assert written.with_suffix(".png").stat().st_size > 10_000
     frames = doc["frames"]
     assert sorted((f["state"], f["t"]) for f in frames) == [("off", 0.5), ("off", 1.0), ("on", 0.5), ("on", 1.0)]

@@ -29,3 +29,22 @@ def test_a_converged_solution_beats_an_unconverged_one_whatever_its_energy():
     assert pick_equilibrium(bad, good).result is good and pick_equilibrium(good, bad).result is good
     worse = result(0.5, converged=False, residual=0.9)
     assert pick_equilibrium(bad, worse).result is bad  # neither converged: the lower residual
+
+
+def test_the_motion_from_rest_replaces_the_two_starts_only_where_clearly_lower():
+    """``Evaluator.evaluate(known=...)``: the end of the motion solved from rest (what a
+    wearer reaches) is kept where it is converged and lower by more than MULTISTABLE, with
+    the two starts' equilibrium reported as the other; closer, higher or unconverged ones
+    leave the evaluation as it was."""
+    from kgarment.design.evaluate import Equilibrium, with_known
+
+    starts = Equilibrium(result(24.9))
+    e = with_known(starts, result(6.8))
+    assert e.result.total_energy == 6.8 and e.other is starts.result and e.from_path
+    assert with_known(starts, None) is starts
+    assert with_known(starts, result(24.9 * (1 - MULTISTABLE / 2))) is starts  # round-off apart: unchanged
+    assert with_known(starts, result(30.0)) is starts  # higher: the starts' stays
+    assert with_known(starts, result(1.0, converged=False, residual=0.3)) is starts
+    unconverged = Equilibrium(result(5.0, converged=False, residual=0.2))
+    e = with_known(unconverged, result(9.0))
+    assert e.result.total_energy == 9.0 and e.from_path and e.other is None

@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pytest
 
+from kgarment.design.evaluate import MULTISTABLE
 from kgarment.garment.topology import triangle_areas
 from kgarment.reproduce.baselines import manual_design, random_design
 
@@ -144,6 +145,16 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
         for p in e["path"].values():
             assert sorted((f["motion"], f["state"], f["t"]) for f in p["frames"]) == sorted(
                 (m, s, t) for m in e["motions"] for s in ("on", "off") for t in (0.5, 1.0))
+    # one truth: the motion's end and the evaluation agree on the garment's energy (each keeps
+    # the other's equilibrium where it is the lower), and the evaluation says which it kept
+    for e in doc["experiments"].values():
+        for kind in ("ours", "manual"):
+            ev = e["evaluations"][kind]
+            assert all(isinstance(r["from_path"], bool) for r in ev["rows"])
+            ends = {(f["motion"], f["state"]): f["energy_J"] for f in e["path"][kind]["frames"] if f["t"] == 1.0}
+            for g in ev["garment"]:
+                for state in ("on", "off"):
+                    assert ends[(g["motion"], state)] == pytest.approx(g[f"energy_{state}_J"], rel=MULTISTABLE)
     assert "peak_force" in summary["targets"]
     md = (rep / "report.md").read_text()
     assert "Force over the motion" in md

@@ -194,7 +194,9 @@ def print_evaluation(res) -> None:
     print(f"{'motion':24s} {'state':{w}s} {'rho':>7s} {'E design (J)':>13s} {'E full (J)':>11s}")
     for r in res.states:
         flag = "" if r.converged else "  (NOT converged)"
-        if r.multistable:
+        if r.from_path:
+            flag += f"  (the motion from rest ends here; the two starts' equilibrium above it has rho {r.other_rho:.3f})"
+        elif r.multistable:
             flag += f"  (a second equilibrium of higher energy has rho {r.other_rho:.3f})"
         print(f"{r.motion:24s} {r.state:{w}s} {r.rho:7.3f} {r.energy:13.5g} {r.energy_full:11.5g}{flag}")
     print(f"reinforced area {100 * res.area:.1f}%; islands {res.islands} ({res.islands_with_clutches} counting "

@@ -161,12 +161,8 @@ def cmd_evaluate(args) -> int:
     ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device)
     design = load_design(src, ev.n_faces)
     print(f"design: {src.run} iteration {k} ({100 * (design > 0.5).mean():.1f}% of faces reinforced)")
-    res = ev.evaluate(design, loads=not args.no_loads)
-    print_evaluation(res)
-    if args.plot and res.loads is not None:
-        print(f"wrote {load_chart(res.loads, args.plot, f'{src}: clutch loads')}")
     path = None
-    if args.path:
+    if args.path:  # first: the motion's end from rest competes with the evaluation's two starts
         from kgarment.design.path import path_forces, path_plot
 
         print(f"force over the motion: {args.path} frames from rest to the target pose, ON and OFF")
@@ -179,6 +175,10 @@ def cmd_evaluate(args) -> int:
         title = f"{src.run.name} iteration {k}: force over the motion" + (" (clutches slip)" if hw.model == "slip" else "")
         print(f"wrote {path_plot(path, stem.with_suffix('.png'), title)}"
               f" and {stem.with_suffix('.json')}")
+    res = ev.evaluate(design, loads=not args.no_loads, known=path.ends if path is not None else None)
+    print_evaluation(res)
+    if args.plot and res.loads is not None:
+        print(f"wrote {load_chart(res.loads, args.plot, f'{src}: clutch loads')}")
     others = [evaluate_on_phenotype(args, p, phen, body, garment, design) for phen in phenotypes] \
         if args.phenotype else []
     if args.json:

@@ -15,7 +15,12 @@ several equilibria (the garment settles in different places), and the two starts
 end in different ones: the converged solution of lower total energy, the more stable one,
 is kept, and the other is reported when the two differ by more than ``MULTISTABLE``.  A
 clutched state that converges from neither start is solved by
-:func:`activation_continuation`.  Measured on a tiny sleeve design
+:func:`activation_continuation`.  Equilibria found otherwise -- the end of the motion
+solved from rest (``kgarment evaluate --path``, :func:`kgarment.design.path.path_forces`),
+the one a wearer reaches -- compete with the two starts' (``known``): the lowest is kept
+and marked ``from_path``.  Measured on the two-motion sleeve at subdivision 1 (its final
+design, 2026-11-26): in arm flexion ON the two starts ended at 24.9 J, the motion from rest
+at 6.8 J (rho ON 0.99 against 0.05).  Measured on a tiny sleeve design
 (``tests/test_design_e2e.py``): the run's warm path ended at 0.455 J (rho ON 0.955), the
 skin-tight start at 0.444 J (rho ON 0.889).
 """
@@ -48,9 +53,10 @@ class StateEvaluation:
     motion, state : the key ("on", "off" or "none");  rho : relative energy density;
     energy : J stored in the design's reinforced faces and the clutches;  energy_full : the
     fully reinforced garment's, J;  converged : both equilibria converged;  other_rho : rho
-    of a second equilibrium of higher total energy found from the other start (None: the
-    starts agree);  result : the design's equilibrium (StateResult);  reference : the
-    full garment's.
+    of a second equilibrium of higher total energy found from another start (None: the
+    starts agree);  from_path : the kept equilibrium is the end of the motion from rest
+    (``known``), below the two starts';  result : the design's equilibrium (StateResult);
+    reference : the full garment's.
     """
 
     motion: str
@@ -60,6 +66,7 @@ class StateEvaluation:
     energy_full: float
     converged: bool
     other_rho: float | None = None
+    from_path: bool = False
     result: StateResult = field(default=None, repr=False, compare=False)
     reference: StateResult = field(default=None, repr=False, compare=False)
 
@@ -74,7 +81,8 @@ class StateEvaluation:
     def row(self) -> dict:
         """The JSON-ready numbers (no equilibria)."""
         return {"motion": self.motion, "state": self.state, "rho": self.rho, "energy": self.energy,
-                "energy_full": self.energy_full, "converged": self.converged, "other_rho": self.other_rho}
+                "energy_full": self.energy_full, "converged": self.converged, "other_rho": self.other_rho,
+                "from_path": self.from_path}
 
 
 @dataclass(frozen=True)
@@ -131,6 +139,22 @@ class Equilibrium:
 
     result: StateResult
     other: StateResult | None = None
+    from_path: bool = False
+
+
+def with_known(e: Equilibrium, known: StateResult | None) -> Equilibrium:
+    """``e`` against an equilibrium found otherwise (the motion from rest; None: none):
+    ``known`` replaces it (``from_path``, ``e``'s reported as the other) where it is converged
+    and lower by more than :data:`MULTISTABLE`; closer ones leave ``e`` as it is, so the
+    numbers do not change with ``--path`` for round-off."""
+    if known is None or not known.converged:
+        return e
+    if not e.result.converged:
+        return Equilibrium(known, from_path=True)
+    p = pick_equilibrium(e.result, known)
+    if p.result is known and p.other is not None:
+        return Equilibrium(known, e.result, from_path=True)
+    return e
 
 
 def pick_equilibrium(a: StateResult, b: StateResult) -> Equilibrium:
@@ -249,7 +273,8 @@ class Evaluator:
 
     def evaluate(self, design: np.ndarray, motions=None, *, loads: bool = False,
                  report: Callable[[str], None] | None = None,
-                 cancelled: Callable[[], bool] | None = None) -> DesignEvaluation:
+                 cancelled: Callable[[], bool] | None = None,
+                 known: dict[StateKey, StateResult] | None = None) -> DesignEvaluation:
         """Evaluate ``design`` (m,) (> 0.5 = reinforced) on ``motions`` (default: all).
 
         All states are solved together (in worker processes when the solver has them);
@@ -257,7 +282,9 @@ class Evaluator:
         ``report(text)`` before each solve, ``cancelled()`` checked between solves (raises
         :class:`Cancelled`).  The numbers are the same either way.  ``loads``: also the
         per-clutch load report (:func:`kgarment.design.loads.clutch_loads`; clutched
-        objectives only).
+        objectives only).  ``known``: {(motion, state): StateResult} equilibria of this design
+        found otherwise (the last frames of :func:`kgarment.design.path.path_forces`), kept
+        where they are lower than the two starts' (module docstring).
         """
         design = np.asarray(design, dtype=np.float64)
         if design.shape != (self.n_faces,):
@@ -267,6 +294,8 @@ class Evaluator:
             pairs = list(zip(self.reference(keyed), self.solve_design(design, keyed)))
         else:
             pairs = [self._one(design, k, i, len(keyed), report, cancelled) for i, k in enumerate(keyed)]
+        known = known or {}
+        pairs = [(rf, with_known(eq, known.get(k))) for (k, _), (rf, eq) in zip(keyed, pairs)]
         ev = self._summarise(design, keyed, pairs)
         if loads and self.setup.n_clutches and self.setup.objective != "passive":
             known = {s.key: s.result for s in ev.states if s.state in ("on", "off")}
@@ -301,7 +330,7 @@ class Evaluator:
             rows.append(StateEvaluation(
                 motion, state, rho, float(sd.face_energy[solid].sum() + sd.clutch_energy),
                 float(sf.face_energy.sum() + sf.clutch_energy), bool(rf.converged and eq.result.converged), other,
-                eq.result, rf))
+                eq.from_path, eq.result, rf))
         shape = setup.structure(design)
         return DesignEvaluation(
             solid, tuple(rows), float(setup.areas[solid].sum() / setup.areas.sum()), shape["islands"],

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -67,11 +67,15 @@ class PathFrame:
 class PathReport:
     """Frames of every motion, ON and OFF; clutches : clutch names in tension order;
     holding_N : ((motion, (K,) N), ...) the force each clutch holds in the motion's ON state
-    with the slip model (:mod:`kgarment.sim.slip`), empty for locked clutches."""
+    with the slip model (:mod:`kgarment.sim.slip`), empty for locked clutches;  ends :
+    {(motion, "on" | "off"): StateResult} the last frame's equilibria (the target pose
+    reached from rest), for :meth:`kgarment.design.Evaluator.evaluate`'s ``known`` (not in
+    the JSON)."""
 
     clutches: tuple[str, ...]
     frames: tuple[PathFrame, ...]
     holding_N: tuple[tuple[str, tuple[float, ...]], ...] = ()
+    ends: dict = field(default_factory=dict, repr=False, compare=False)
 
     def slips(self) -> list[dict]:
         """Per motion and clutch that reaches its holding force ON: the first frame's
@@ -215,7 +219,8 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
                                      bool(r.converged), (m, s, i) in resolved))
     holding_n = tuple((m, tuple(float(h) for h in model.holding(setup.on_activation(m)))) for m in motions) \
         if model.slips else ()
-    return PathReport(tuple(names), tuple(out), holding_n)
+    ends = {(m, s): results[(m, s, frames - 1)] for m in motions for s in STATES}
+    return PathReport(tuple(names), tuple(out), holding_n, ends)
 
 
 def _anchor_target(evaluator, design, motions, frames, by_motion, state, results) -> set:

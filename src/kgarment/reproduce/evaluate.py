@@ -97,6 +97,30 @@ class CachedEvaluator:
             self.cache.put(key, out)
         return out
 
+    def evaluate_with_path(self, design: np.ndarray, label: str, frames: int) -> tuple[dict, dict]:
+        """(evaluation with loads, force over the motion) of ``design`` (m,): the motion
+        solved from rest in ``frames`` frames first, its last frames then competing with the
+        evaluation's two starts (:meth:`kgarment.design.Evaluator.evaluate`'s ``known``), so
+        the report's rho, loads and force curves are of the equilibrium the wearer reaches
+        where it is the lower.  Both cached like the evaluations."""
+        from kgarment.design.path import path_forces
+
+        design = np.asarray(design, dtype=np.float64)
+        key = f"{self.name}|{design_key(design)}|loads2|path{frames}"
+        pkey = self._path_key(design, frames)
+        if self.cache is not None and (hit := self.cache.get(key)) is not None \
+                and (phit := self.cache.get(pkey)) is not None:
+            return hit, phit
+        path = path_forces(self.evaluator, design, self.problem, frames=frames)
+        out = {"label": label, **self.evaluator.evaluate(design, loads=True, known=path.ends).to_json()}
+        if self.cache is not None:
+            self.cache.put(pkey, path.to_json())
+            self.cache.put(key, out)
+        return out, path.to_json()
+
+    def _path_key(self, design: np.ndarray, frames: int) -> str:
+        return f"{self.name}|{design_key(design)}|path{frames}|v2"  # v2: the end anchored at the target's equilibrium
+
     def plan(self, design: np.ndarray) -> dict:
         """The control table of ``design`` (m,) (:func:`kgarment.design.plan.make_plan`: every
         clutch set in every motion) as JSON, cached like the evaluations."""
@@ -117,7 +141,7 @@ class CachedEvaluator:
         from kgarment.design.path import path_forces
 
         design = np.asarray(design, dtype=np.float64)
-        key = f"{self.name}|{design_key(design)}|path{frames}|v2"  # v2: the end anchored at the target's equilibrium
+        key = self._path_key(design, frames)
         if self.cache is not None and (hit := self.cache.get(key)) is not None:
             return hit
         out = path_forces(self.evaluator, design, self.problem, frames=frames).to_json()

@@ -48,6 +48,7 @@ from kgarment.reproduce.targets import target_flags
 log = logging.getLogger(__name__)
 PLAN_CLUTCHES = 3  # multi-motion experiments with at most this many clutches get their clutch-set table
 PATH_DESIGNS = ("ours", "manual", "full")  # designs whose force over the motion the report draws
+LOADED = ("ours", "manual")  # designs evaluated with clutch loads (and, with paths, the motion's end as a start)
 
 
 def _render_design(path: Path, ev: CachedEvaluator, design: np.ndarray, title: str) -> str:
@@ -104,10 +105,14 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
              "activation": {m: dict(v) for m, v in problem.activation}, "lockout": problem.design.lockout,
              "balance": problem.design.balance,
              "evaluations": {}, "images": {}}
+    paths = {}
     for kind, d in designs.items():
         log.info("%s: evaluating the %s design", exp.name, kind)
+        if res.path_frames > 0 and kind in LOADED:  # the motion from rest first: its end competes
+            entry["evaluations"][kind], paths[kind] = ev.evaluate_with_path(d, kind, res.path_frames)
+            continue
         # clutch loads where the report and the targets read them: ours against the manual baseline
-        entry["evaluations"][kind] = ev.evaluate(d, kind, loads=kind in ("ours", "manual"))
+        entry["evaluations"][kind] = ev.evaluate(d, kind, loads=kind in LOADED)
     lap("evaluations")
     if exp.multi and len(ev.strips) <= PLAN_CLUTCHES:
         entry["plan"] = ev.plan(ours.design)
@@ -116,7 +121,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         entry["path"] = {}
         for kind in PATH_DESIGNS:
             log.info("%s: the force over the motion of the %s design (%d frames)", exp.name, kind, res.path_frames)
-            entry["path"][kind] = ev.path(designs[kind], res.path_frames)
+            entry["path"][kind] = paths[kind] if kind in paths else ev.path(designs[kind], res.path_frames)
         entry["images"]["force"] = "img/" + force_figure(img / f"{exp.name}_force.png", entry["path"],
                                                          f"{exp.name}: force over the motion").name
     lap("paths")

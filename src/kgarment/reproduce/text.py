@@ -78,6 +78,14 @@ def assessment(e: dict) -> list[str]:
         lines.append(f"- Run: objective between {lo:.3f} and {hi:.3f} over the {len(rows)} iterations at the target area"
                      + (" -- it oscillates: the ON equilibria of these sparse designs are multistable, and a "
                         "1.5-3% design change can move the garment to another one." if hi > 2 * max(lo, 1e-9) else "."))
+    for kind in ("ours", "manual"):
+        moved = [r for r in ev.get(kind, {}).get("rows", []) if r.get("from_path")]
+        if moved:
+            lines.append(f"- Equilibria ({kind}): " + "; ".join(
+                f"in {r['motion']} {r['state'].upper()} the motion from rest ends in an equilibrium below the one the "
+                f"two starts reach (rho {r['rho']:.2f} against "
+                + ("theirs unconverged)" if r["other_rho"] is None else f"{r['other_rho']:.2f})") for r in moved)
+                + ". The numbers here (rho, loads) are the motion's: what a wearer meets.")
     o = ev["ours"]
     lines.append(f"- Structure: {o['islands_with_clutches']} part(s) counting clutches as links ({o['islands']} without), "
                  f"{o['clutch_ends_supported']} of {o['clutch_ends']} clutch ends on reinforcement; compliance design "
