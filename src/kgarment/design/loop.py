@@ -115,7 +115,7 @@ class Solved:
     unconverged : names of the states that did not converge;  energy : {StateKey: J stored
     in the reinforced faces (and clutches)};  stored : {StateKey: Stored};  alpha : {StateKey:
     (m,) element sensitivities};  newton_iterations : of every solve, both starts with
-    ``skin_start``.
+    ``skin_start`` and the motion from rest with ``path_start``.
     """
 
     keys: list[StateKey]
@@ -147,6 +147,11 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
         both = warm_results + cold
     else:
         results = both = setup.solve(st.design, states, warm_start=warm, options=opts)
+    path_newton = 0
+    if setup.path_start and st.iteration > 0 and st.iteration % setup.path_start == 0:
+        from kgarment.design.path import motion_ends
+
+        results, path_newton = motion_ends(setup, st.design, keyed, results, opts)
     factor = log_stiffness_derivative(st.design, setup.model.preset) / setup.model.preset.penal
     alpha, energy, stored = {}, {}, {}
     for (key, _), r in zip(keyed, results):
@@ -156,7 +161,7 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
         energy[key] = float(s.face_energy[st.design > 0.5].sum() + s.clutch_energy)
     return Solved([k for k, _ in keyed], states, results, opts, opts is not setup.solver,
                   [r.name for r in results if not r.converged], energy, stored, alpha,
-                  int(sum(r.convergence.iterations for r in both)))
+                  int(sum(r.convergence.iterations for r in both)) + path_newton)
 
 
 def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved,

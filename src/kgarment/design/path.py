@@ -223,6 +223,37 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
     return PathReport(tuple(names), tuple(out), holding_n, ends)
 
 
+def motion_ends(setup, design: np.ndarray, keyed, results: list, options) -> tuple[list, int]:
+    """The design loop's motion start (``[solver] path_start``): each ON state of ``keyed``
+    ([(StateKey, SimState)]) solved over its motion from rest -- the frames of
+    ``setup.path_frames`` (the first from the skin-tight garment, each next one from the one
+    before; all states' frame i in one batch), then the target state itself from the last
+    frame -- and kept instead of ``results``' equilibrium (the same order) where converged and
+    lower by more than :data:`MULTISTABLE`.  Returns (the results, Newton iterations spent)."""
+    from kgarment.design.evaluate import pick_equilibrium
+
+    todo = [i for i, ((m, s), _) in enumerate(keyed) if s == "on" and m in setup.path_frames]
+    if not todo:
+        return results, 0
+    x = {i: None for i in todo}
+    newton = 0
+    for f in range(len(setup.path_frames[keyed[todo[0]][0][0]]) + 1):
+        states = [st if f == len(setup.path_frames[k[0]]) else
+                  SimState.create(setup.path_frames[k[0]][f], st.activation, name=f"{st.name}@{f + 1}")
+                  for k, st in (keyed[i] for i in todo)]
+        solved = setup.solve(design, states, warm_start=[x[i] for i in todo], options=options)
+        newton += sum(r.convergence.iterations for r in solved)
+        x = {i: r.x for i, r in zip(todo, solved)}
+    out = list(results)
+    for i, end in zip(todo, solved):
+        e = pick_equilibrium(out[i], end)
+        if e.result is end and end.converged and (e.other is not None or not out[i].converged):
+            log.info("%s: the motion from rest ends %.4g J below the design loop's equilibrium (%.4g J); "
+                     "going on from it", end.name, out[i].total_energy - end.total_energy, out[i].total_energy)
+            out[i] = end
+    return out, newton
+
+
 def _anchor_target(evaluator, design, motions, frames, by_motion, state, results) -> set:
     """The last frame is the target pose: where the evaluator's equilibrium there (its two
     starts, :meth:`kgarment.design.Evaluator.solve_design`) has less energy than the path's,

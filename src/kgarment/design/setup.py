@@ -50,7 +50,10 @@ class DesignSetup:
     own (the active objective's ``solo:`` states);  guard : the step guard's share
     (:mod:`kgarment.design.guard`; 0: off);  combine : "sum" or "product" of the motions'
     terms (:mod:`kgarment.design.objective`);  wearers : {motion: Wearer} of a multi-body
-    design (every motion ``MOTION@BODY``; {} for one body: ``model`` and ``areas`` serve all).
+    design (every motion ``MOTION@BODY``; {} for one body: ``model`` and ``areas`` serve all);
+    path_start : every this many iterations the ON states are also solved over their motion
+    from rest (``SolverSpec.path_start``; 0: never);  path_frames : {motion: (Motion, ...)} the
+    garment on the body posed at the motion's frames before the target (for ``path_start``).
     """
 
     model: SimModel
@@ -74,6 +77,8 @@ class DesignSetup:
     guard: float = 0.0
     combine: str = "sum"
     wearers: dict[str, Wearer] = field(default_factory=dict, repr=False)
+    path_start: int = 0
+    path_frames: dict[str, tuple[Motion, ...]] = field(default_factory=dict, repr=False)
 
     @classmethod
     def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
@@ -81,7 +86,8 @@ class DesignSetup:
               protected: np.ndarray | None = None, skin_start: bool = False,
               activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0,
               balance: float = 0.0, guard: float = 0.0, combine: str = "sum",
-              wearers: dict[str, Wearer] | None = None) -> DesignSetup:
+              wearers: dict[str, Wearer] | None = None, path_start: int = 0,
+              path_frames: dict[str, tuple[Motion, ...]] | None = None) -> DesignSetup:
         """Precompute areas, filter, adjacency and clutch ends for ``model`` (the garment on
         the body it is cut from; ``wearers``: a multi-body design's, see the class doc)."""
         X, F = model.garment_rest, model.garment_faces
@@ -100,7 +106,8 @@ class DesignSetup:
                    face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0,
                    attached.astype(np.int64), loops, skin_start,
                    {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout),
-                   float(balance), float(guard), combine, dict(wearers or {}))
+                   float(balance), float(guard), combine, dict(wearers or {}), int(path_start),
+                   dict(path_frames or {}))
 
     def model_of(self, motion: str) -> SimModel:
         """The SimModel ``motion`` is solved on (its wearer's garment)."""
@@ -250,13 +257,28 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
     if problem.body.phenotypes:
         motions, activation, wearers = wearer_motions(problem, body, garment, strips, model, motions, activation,
                                                       specs)
+    path_start = problem.solver.path_start if purpose == "design" and d.objective != "passive" else 0
+    path_frames = {}
+    if path_start:
+        from kgarment.constants import PATH_START_FRAMES
+        from kgarment.design.path import frame_motions
+
+        if wearers:
+            raise KgarmentError("[solver] path_start: the motion from rest is solved on one body; a multi-body "
+                                "design ([body] phenotypes) cannot use it")
+        frames, index = frame_motions(problem, list(problem.motions), PATH_START_FRAMES)
+        for label, m, t in index:
+            if t < 1.0:  # the last frame is the target pose, the state's own motion
+                path_frames.setdefault(m, []).append(frames[label])
+        path_frames = {m: tuple(v) for m, v in path_frames.items()}
     return DesignSetup.build(model, motions, d.objective, d.beso, solver,
                              evolution_solver=evolution,
                              protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin),
                              skin_start=problem.solver.skin_start, activation=activation, wearers=wearers,
                              lockout=d.lockout if d.objective == "active" else 0.0,
                              balance=d.balance if d.objective == "active" else 0.0, guard=d.guard,
-                             combine=d.combine if d.objective == "active" else "sum")
+                             combine=d.combine if d.objective == "active" else "sum",
+                             path_start=path_start, path_frames=path_frames)
 
 
 def activation_vectors(problem: Problem, names: list[str]) -> dict[str, np.ndarray]:

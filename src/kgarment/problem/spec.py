@@ -218,6 +218,14 @@ class SolverSpec:
     clutches that a frictionless limb lets slide off the stretched side (the arm-flexion
     sleeve: along the warm-started path the clutch stays over the outer elbow at 40-300% more
     energy than where the garment settles, turned ~20 degrees about the arm).
+    path_start : every ``path_start``-th design iteration (0: never) also solves each ON state
+    over its motion from rest (``PATH_START_FRAMES`` frames, each from the one before, the
+    last the target pose) and keeps that equilibrium where it is lower by more than 1%
+    (``kgarment.design.path.motion_ends``): the one a wearer reaches, which neither the
+    warm-started path through the designs nor the skin-tight start need find (the two-motion
+    sleeve at subdivision 1 turns ~36 degrees about the arm over flexion, 6.8 J against
+    24.9 J).  The later iterations start from it.  Costs PATH_START_FRAMES solves per ON
+    state on those iterations; needs a posable body.
     workers : processes solving states in parallel; 0 = one per core, at most 8 (results do
     not depend on it).
     """
@@ -227,6 +235,7 @@ class SolverSpec:
     evolution_tol: float = C.EVOLUTION_TOL
     max_iter: int = C.MAX_NEWTON
     skin_start: bool = False
+    path_start: int = 0
     workers: int = 0
 
 
