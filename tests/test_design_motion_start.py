@@ -4,6 +4,7 @@ rest, that end kept where it is clearly lower (kgarment.design.path.motion_ends)
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import tomllib
 
 import numpy as np
@@ -46,7 +47,7 @@ def test_the_frames_lead_to_the_target_pose(setup):
     target = setup.motions["arm_flexion.right"].garment_x0
     # the body's pose moves towards the target frame by frame: the attached garment with it
     gaps = [float(np.abs(f.garment_x0 - target).max()) for f in frames]
-    assert all(a > b for a, b in zip(gaps, gaps[1:])) and gaps[-1] > 1e-4
+    assert all(a > b for a, b in itertools.pairwise(gaps)) and gaps[-1] > 1e-4
 
 
 def test_a_higher_equilibrium_is_replaced_and_a_lower_one_kept(setup):
