@@ -13,7 +13,7 @@ import pytest
 from kgarment.constants import PATH_START_FRAMES
 from kgarment.design.beso import design_values
 from kgarment.design.evaluate import MULTISTABLE
-from kgarment.design.path import motion_ends
+from kgarment.design.path import PATH_FRAMES, motion_ends
 from kgarment.design.setup import setup_from_problem
 from kgarment.errors import KgarmentError
 from kgarment.problem import build_clutches, build_garment, parse_problem
@@ -80,3 +80,29 @@ def test_bad_values_and_uses_are_one_line_errors(anny_body):
     p = parse_problem(tomllib.loads(SLEEVE.format(every=0)))
     g = build_garment(p, anny_body)
     assert setup_from_problem(p, anny_body, g, build_clutches(p, anny_body, g), "design").path_frames == {}
+
+
+def test_the_reported_design_is_one_whose_motion_was_solved(tmp_path):
+    """The best iteration of a path_start run is chosen among the iterations whose ON states
+    were also solved over the motion (the others' objectives may be of an equilibrium the
+    wearer never reaches), and its final evaluation is ``evaluate --path``'s (the path in
+    the JSON, the rows saying which equilibrium each kept)."""
+    import json
+
+    from kgarment.cli import main
+    from kgarment.design.run import best_iteration
+
+    rows = [{"iteration": i, "area": 0.6, "objective": o, "unconverged_states": "", "path_checked": c}
+            for i, (o, c) in enumerate([(1.0, False), (0.9, True), (3.0, False), (0.8, True)])]
+    assert best_iteration(rows, 0.6, 0.15) == 1
+    assert best_iteration([dict(r, path_checked=False) for r in rows], 0.6, 0.15) == 2  # none checked: all count
+    problem = SLEEVE.format(every=2) + "[design]\ntarget_area = 0.6\ner = 0.15\nar_max = 0.05\nmax_iterations = 5\n"
+    (tmp_path / "p.toml").write_text(problem)
+    assert main(["-q", "design", str(tmp_path / "p.toml"), "--out", str(tmp_path / "run")]) == 0
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert [r["path_checked"] for r in metrics] == [i > 0 and i % 2 == 0 for i in range(len(metrics))]
+    final = json.loads((tmp_path / "run" / "final" / "evaluation.json").read_text())
+    assert next(r for r in metrics if r["iteration"] == final["iteration"])["path_checked"]
+    assert sorted({f["t"] for f in final["path"]["frames"]}) == pytest.approx([k / PATH_FRAMES
+                                                                              for k in range(1, PATH_FRAMES + 1)])
+    assert all(isinstance(r["from_path"], bool) for r in final["rows"])

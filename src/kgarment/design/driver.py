@@ -213,11 +213,19 @@ def evaluate_final(dr: DesignRun, iteration: int) -> tuple[DesignEvaluation, lis
     """The final design (of ``iteration``) evaluated like ``kgarment evaluate RUN`` (the one
     design evaluator, per-clutch loads included): ``final/evaluation.json`` and
     ``final/clutch_loads.png``.  These, not the metrics rows (solved warm along the run's
-    path, to the design tolerance), are the run's final numbers."""
+    path, to the design tolerance), are the run's final numbers.  A run with ``[solver]
+    path_start`` is evaluated like ``kgarment evaluate RUN --path 10`` (the motion's end a
+    start; its force over the motion under ``path`` in the JSON)."""
     ev = Evaluator(setup_from_problem(dr.problem, dr.body, dr.garment, dr.strips, "evaluate", dr.setup.solver.device))
     design = design_values(dr.state.designs[iteration])
-    res = ev.evaluate(design, loads=True)
-    doc = {"run": str(dr.run), "iteration": iteration, **res.to_json()}
+    path = None
+    if dr.setup.path_start:  # a run that designs against the motion is judged by it: --path's numbers
+        from kgarment.design.path import PATH_FRAMES, path_forces
+
+        path = path_forces(ev, design, dr.problem, frames=PATH_FRAMES)
+    res = ev.evaluate(design, loads=True, known=None if path is None else path.ends)
+    doc = {"run": str(dr.run), "iteration": iteration, **res.to_json(),
+           **({} if path is None else {"path": path.to_json()})}
     paths = [atomic_write_text(dr.run / "final" / "evaluation.json", json.dumps(doc, indent=1))]
     if res.loads is not None:
         paths.append(load_chart(res.loads, dr.run / "final" / "clutch_loads.png",

@@ -115,7 +115,8 @@ class Solved:
     unconverged : names of the states that did not converge;  energy : {StateKey: J stored
     in the reinforced faces (and clutches)};  stored : {StateKey: Stored};  alpha : {StateKey:
     (m,) element sensitivities};  newton_iterations : of every solve, both starts with
-    ``skin_start`` and the motion from rest with ``path_start``.
+    ``skin_start`` and the motion from rest with ``path_start``;  path_checked : the ON
+    states were also solved over their motion from rest (``path_start``).
     """
 
     keys: list[StateKey]
@@ -128,6 +129,7 @@ class Solved:
     stored: dict[StateKey, Stored]
     alpha: dict[StateKey, np.ndarray]
     newton_iterations: int
+    path_checked: bool = False
 
 
 def initial_state(setup: DesignSetup) -> LoopState:
@@ -148,7 +150,8 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     else:
         results = both = setup.solve(st.design, states, warm_start=warm, options=opts)
     path_newton = 0
-    if setup.path_start and st.iteration > 0 and st.iteration % setup.path_start == 0:
+    checked = bool(setup.path_start) and st.iteration > 0 and st.iteration % setup.path_start == 0
+    if checked:
         from kgarment.design.path import motion_ends
 
         results, path_newton = motion_ends(setup, st.design, keyed, results, opts)
@@ -161,7 +164,7 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
         energy[key] = float(s.face_energy[st.design > 0.5].sum() + s.clutch_energy)
     return Solved([k for k, _ in keyed], states, results, opts, opts is not setup.solver,
                   [r.name for r in results if not r.converged], energy, stored, alpha,
-                  int(sum(r.convergence.iterations for r in both)) + path_newton)
+                  int(sum(r.convergence.iterations for r in both)) + path_newton, checked)
 
 
 def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved,
@@ -213,6 +216,7 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
         "unconverged_states": ";".join(solved.unconverged), "seconds": 0.0,
         "newton_iterations": solved.newton_iterations,
         "solver_tol": solved.options.tol,
+        **({"path_checked": solved.path_checked} if setup.path_start else {}),
     }
     row.update({TERM.format(m): v for m, v in terms.items()})
     row.update({f"rho[{k[0]}:{k[1]}]": relative_energy_density(design, setup.areas_of(k[0]), solved.stored[k],
