@@ -20,7 +20,7 @@ solved from rest (``kgarment evaluate --path``, :func:`kgarment.design.path.path
 the one a wearer reaches -- compete with the two starts' (``known``): the lowest is kept
 and marked ``from_path``.  Measured on the two-motion sleeve at subdivision 1 (its final
 design, 2026-11-26): in arm flexion ON the two starts ended at 24.9 J, the motion from rest
-at 6.8 J (rho ON 0.99 against 0.05).  Measured on a tiny sleeve design
+at 6.8 J (rho ON 0.99 against 0.02, below its rho OFF 0.03).  Measured on a tiny sleeve design
 (``tests/test_design_e2e.py``): the run's warm path ended at 0.455 J (rho ON 0.955), the
 skin-tight start at 0.444 J (rho ON 0.889).
 """
