@@ -8,18 +8,9 @@ import sys
 
 import numpy as np
 import pytest
+from tiny_problems import TINY_SLEEVE
 
-SLEEVE = """
-[garment]
-template = "arm_sleeve.right"
-subdivision = 0
-[motions]
-use = ["arm_flexion.right"]
-[clutches]
-layout = "arm_flexion"
-[materials]
-preset = "reference"
-[design]
+SLEEVE = TINY_SLEEVE + """[design]
 objective = "{objective}"
 target_area = 0.8
 er = 0.1

@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from tiny_problems import TINY_SLEEVE
 
 from kgarment.cli import main
 from kgarment.constants import target_reached
@@ -16,17 +17,7 @@ from kgarment.design import Evaluator, finish, load_design, load_design_history,
 from kgarment.errors import KgarmentError
 from kgarment.problem import load_problem
 
-SLEEVE = """
-[garment]
-template = "arm_sleeve.right"
-subdivision = 0
-[motions]
-use = ["arm_flexion.right"]
-[clutches]
-layout = "arm_flexion"
-[materials]
-preset = "reference"
-[design]
+SLEEVE = TINY_SLEEVE + """[design]
 target_area = 0.6
 er = 0.15
 ar_max = 0.05

@@ -9,6 +9,7 @@ import tomllib
 
 import numpy as np
 import pytest
+from tiny_problems import TINY_SLEEVE
 
 from kgarment.constants import PATH_START_FRAMES
 from kgarment.design.beso import design_values
@@ -18,17 +19,7 @@ from kgarment.design.setup import setup_from_problem
 from kgarment.errors import KgarmentError
 from kgarment.problem import build_clutches, build_garment, parse_problem
 
-SLEEVE = """
-[garment]
-template = "arm_sleeve.right"
-subdivision = 0
-[motions]
-use = ["arm_flexion.right"]
-[clutches]
-layout = "arm_flexion"
-[materials]
-preset = "reference"
-[solver]
+SLEEVE = TINY_SLEEVE + """[solver]
 path_start = {every}
 workers = 1
 """

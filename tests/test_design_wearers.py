@@ -13,23 +13,14 @@ import json
 
 import numpy as np
 import pytest
+from tiny_problems import TINY_SLEEVE
 
 from kgarment.cli import main
 from kgarment.design import Evaluator, load_design, load_design_history
 from kgarment.problem import load_problem, parse_problem, problem_to_dict
 
-SLEEVE = """
-[body]
+SLEEVE = TINY_SLEEVE + """[body]
 phenotypes = [{phenotypes}]
-[garment]
-template = "arm_sleeve.right"
-subdivision = 0
-[motions]
-use = ["arm_flexion.right"]
-[clutches]
-layout = "arm_flexion"
-[materials]
-preset = "reference"
 [design]
 target_area = 0.6
 er = 0.15

@@ -11,21 +11,12 @@ import math
 import time
 
 import pytest
+from tiny_problems import TINY_SLEEVE
 
 from kgarment.cli import main
 from kgarment.sweep import load_sweep, task_name
 
-SLEEVE = """
-[garment]
-template = "arm_sleeve.right"
-subdivision = 0
-[motions]
-use = ["arm_flexion.right"]
-[clutches]
-layout = "arm_flexion"
-[materials]
-preset = "reference"
-[design]
+SLEEVE = TINY_SLEEVE + """[design]
 target_area = 0.6
 er = 0.15
 ar_max = 0.05
