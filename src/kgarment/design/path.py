@@ -31,10 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from kgarment.body.motions import Motion as BodyMotion
 from kgarment.design.evaluate import MULTISTABLE
+from kgarment.design.frames import frame_motions
 from kgarment.errors import KgarmentError
-from kgarment.sim import SimState, clutch_tensions, garment_motions, solve_states
+from kgarment.sim import SimState, clutch_tensions, solve_states
 from kgarment.sim.slip import slides
 
 log = logging.getLogger(__name__)
@@ -139,30 +139,6 @@ class PathReport:
             lines += [f"{s['clutch']} slips in {s['motion']} from t = {s['from_t']:.2f} (holds {s['holding_N']:.0f} N)"
                       for s in slips] or ["no clutch reaches its holding force"]
         return "\n".join(lines)
-
-
-def frame_motions(problem, motions, frames: int) -> tuple[dict, list[tuple[str, str, float]]]:
-    """({frame name: kgarment.sim.Motion}, [(frame name, motion, t)]): ``problem``'s garment
-    on its body posed at ``t = i / frames`` of each motion of ``motions`` (i = 1..frames)."""
-    from kgarment.body.anny_backend import load_anny_body
-    from kgarment.problem import build_garment
-
-    if problem.body.model != "anny":
-        raise KgarmentError("--path needs a posable body (body model 'anny'): a mesh sequence has only the "
-                            "target poses")
-    if frames < 1:
-        raise KgarmentError(f"--path {frames}: the number of frames must be at least 1")
-    lib = {m.name: m for m in problem.motion_list()}
-    index, poses = [], []
-    for name in motions:
-        for i in range(1, frames + 1):
-            t = i / frames
-            label = f"{name}@{t:.3f}"
-            poses.append(BodyMotion(label, (lib[name].at(t),)))
-            index.append((label, name, t))
-    body = load_anny_body(poses, problem.body.phenotype)
-    garment = build_garment(problem, body)
-    return garment_motions(body, garment), index
 
 
 def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: int = PATH_FRAMES,

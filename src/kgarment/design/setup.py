@@ -261,7 +261,7 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
     path_frames = {}
     if path_start:
         from kgarment.constants import PATH_START_FRAMES
-        from kgarment.design.path import frame_motions
+        from kgarment.design.frames import frame_motions
 
         if wearers:
             raise KgarmentError("[solver] path_start: the motion from rest is solved on one body; a multi-body "

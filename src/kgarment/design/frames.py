@@ -1,0 +1,32 @@
+"""A motion's frames from rest to its target pose, for the force over the motion
+(:mod:`kgarment.design.path`) and the design loop's motion start (``[solver] path_start``)."""
+
+from __future__ import annotations
+
+from kgarment.body.motions import Motion as BodyMotion
+from kgarment.errors import KgarmentError
+from kgarment.sim import garment_motions
+
+
+def frame_motions(problem, motions, frames: int) -> tuple[dict, list[tuple[str, str, float]]]:
+    """({frame name: kgarment.sim.Motion}, [(frame name, motion, t)]): ``problem``'s garment
+    on its body posed at ``t = i / frames`` of each motion of ``motions`` (i = 1..frames)."""
+    from kgarment.body.anny_backend import load_anny_body
+    from kgarment.problem import build_garment
+
+    if problem.body.model != "anny":
+        raise KgarmentError("the motion from rest (--path, [solver] path_start) needs a posable body (body "
+                            "model 'anny'): a mesh sequence has only the target poses")
+    if frames < 1:
+        raise KgarmentError(f"--path {frames}: the number of frames must be at least 1")
+    lib = {m.name: m for m in problem.motion_list()}
+    index, poses = [], []
+    for name in motions:
+        for i in range(1, frames + 1):
+            t = i / frames
+            label = f"{name}@{t:.3f}"
+            poses.append(BodyMotion(label, (lib[name].at(t),)))
+            index.append((label, name, t))
+    body = load_anny_body(poses, problem.body.phenotype)
+    garment = build_garment(problem, body)
+    return garment_motions(body, garment), index
