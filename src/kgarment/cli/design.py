@@ -60,11 +60,14 @@ def print_summary(dr, seconds: float) -> None:
     row = st.metrics[-1]
     print(f"\n{len(st.metrics)} iterations in {seconds:.0f} s; last iteration {rho_line(row, list(dr.setup.motions))}")
     if dr.evaluation is not None:
+        from kgarment.design.path import PATH_FRAMES
         from kgarment.design.run import final_iteration
 
         k = final_iteration(dr.run)
-        print(f"final design: iteration {k} (the best objective at the target area), evaluated like "
-              f"kgarment evaluate {dr.run}:")
+        checked = dr.setup.path_start > 0
+        print(f"final design: iteration {k} (the best objective at the target area"
+              + (" among the iterations solved over the motion" if checked else "") + "), evaluated like "
+              f"kgarment evaluate {dr.run}" + (f" --path {PATH_FRAMES}" if checked else "") + ":")
         print_evaluation(dr.evaluation)
     print(f"results in {dr.run}/: metrics.csv, metrics.json, progress.png, designs.npz, final/")
     for path in dr.paths:
