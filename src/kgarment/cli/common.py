@@ -195,7 +195,9 @@ def print_evaluation(res) -> None:
     for r in res.states:
         flag = "" if r.converged else "  (NOT converged)"
         if r.from_path:
-            flag += f"  (the motion from rest ends here; the two starts' equilibrium above it has rho {r.other_rho:.3f})"
+            flag += "  (the motion from rest ends here; " + ("the two starts did not converge)" if r.other_rho is None
+                                                            else f"the two starts' equilibrium above it has rho "
+                                                                 f"{r.other_rho:.3f})")
         elif r.multistable:
             flag += f"  (a second equilibrium of higher energy has rho {r.other_rho:.3f})"
         print(f"{r.motion:24s} {r.state:{w}s} {r.rho:7.3f} {r.energy:13.5g} {r.energy_full:11.5g}{flag}")

@@ -206,24 +206,23 @@ def motion_ends(setup, design: np.ndarray, keyed, results: list, options) -> tup
     before; all states' frame i in one batch), then the target state itself from the last
     frame -- and kept instead of ``results``' equilibrium (the same order) where converged and
     lower by more than :data:`MULTISTABLE`.  Returns (the results, Newton iterations spent)."""
-    from kgarment.design.evaluate import pick_equilibrium
+    from kgarment.design.evaluate import Equilibrium, with_known
 
     todo = [i for i, ((m, s), _) in enumerate(keyed) if s == "on" and m in setup.path_frames]
     if not todo:
         return results, 0
-    x = {i: None for i in todo}
+    x = [None] * len(todo)
     newton = 0
-    for f in range(len(setup.path_frames[keyed[todo[0]][0][0]]) + 1):
-        states = [st if f == len(setup.path_frames[k[0]]) else
-                  SimState.create(setup.path_frames[k[0]][f], st.activation, name=f"{st.name}@{f + 1}")
+    n = len(setup.path_frames[keyed[todo[0]][0][0]])  # every motion has as many frames
+    for f in range(n + 1):
+        states = [st if f == n else SimState.create(setup.path_frames[k[0]][f], st.activation, name=f"{st.name}@{f + 1}")
                   for k, st in (keyed[i] for i in todo)]
-        solved = setup.solve(design, states, warm_start=[x[i] for i in todo], options=options)
+        solved = setup.solve(design, states, warm_start=x, options=options)
         newton += sum(r.convergence.iterations for r in solved)
-        x = {i: r.x for i, r in zip(todo, solved)}
+        x = [r.x for r in solved]
     out = list(results)
     for i, end in zip(todo, solved):
-        e = pick_equilibrium(out[i], end)
-        if e.result is end and end.converged and (e.other is not None or not out[i].converged):
+        if with_known(Equilibrium(out[i]), end).from_path:
             log.info("%s: the motion from rest ends %.4g J below the design loop's equilibrium (%.4g J); "
                      "going on from it", end.name, out[i].total_energy - end.total_energy, out[i].total_energy)
             out[i] = end

@@ -113,10 +113,11 @@ class CachedEvaluator:
             return hit, phit
         path = path_forces(self.evaluator, design, self.problem, frames=frames)
         out = {"label": label, **self.evaluator.evaluate(design, loads=True, known=path.ends).to_json()}
+        frames_json = path.to_json()
         if self.cache is not None:
-            self.cache.put(pkey, path.to_json())
+            self.cache.put(pkey, frames_json)
             self.cache.put(key, out)
-        return out, path.to_json()
+        return out, frames_json
 
     def _path_key(self, design: np.ndarray, frames: int) -> str:
         return f"{self.name}|{design_key(design)}|path{frames}|v2"  # v2: the end anchored at the target's equilibrium

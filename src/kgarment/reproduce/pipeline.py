@@ -120,10 +120,11 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     if res.path_frames > 0:
         entry["path"] = {}
         for kind in PATH_DESIGNS:
-            if kind not in paths:  # ours and the manual baseline: solved before their evaluations
-                log.info("%s: the force over the motion of the %s design (%d frames)", exp.name, kind,
-                         res.path_frames)
-            entry["path"][kind] = paths[kind] if kind in paths else ev.path(designs[kind], res.path_frames)
+            if kind in paths:  # ours and the manual baseline: solved before their evaluations
+                entry["path"][kind] = paths[kind]
+                continue
+            log.info("%s: the force over the motion of the %s design (%d frames)", exp.name, kind, res.path_frames)
+            entry["path"][kind] = ev.path(designs[kind], res.path_frames)
         entry["images"]["force"] = "img/" + force_figure(img / f"{exp.name}_force.png", entry["path"],
                                                          f"{exp.name}: force over the motion").name
     lap("paths")
