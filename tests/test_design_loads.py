@@ -117,3 +117,21 @@ def test_clutches_in_series_are_each_needed(series_loads):
     assert lower.tension_N == pytest.approx(upper.tension_N, rel=0.1)
     assert lower.tension_N > 10 * abs(loose.tension_N)
     assert "needed" in series_loads.table()
+
+
+@pytest.mark.skipif(not __import__("torch").cuda.is_available(), reason="needs a CUDA device")
+def test_loads_on_cuda_match_the_cpu(tube, tube_loads):
+    """The same evaluation with the energies on the GPU (``--device cuda``): the per-clutch
+    states start from the nearer of the all-ON and all-OFF equilibria, which must be
+    evaluated on the state's device (a CPU tensor there failed on the H200, 2026-11-26)."""
+    import dataclasses
+
+    evaluator, design = tube
+    s = evaluator.setup
+    gpu = DesignSetup.build(s.model, s.motions, "active", BesoParams(),
+                            dataclasses.replace(s.solver, device="cuda"))
+    loads = Evaluator(gpu).evaluate(design, loads=True).loads
+    for name in ("linked", "loose"):
+        a, b = tube_loads.loads.get("pull", name), loads.get("pull", name)
+        assert b.share == pytest.approx(a.share, abs=0.01)
+        assert b.tension_N == pytest.approx(a.tension_N, rel=0.01, abs=0.5)

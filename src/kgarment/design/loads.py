@@ -187,8 +187,8 @@ def nearer_start(setup, design: np.ndarray, state, starts: list[np.ndarray]) -> 
     Newton iterations from the all-ON equilibria, 976 from the nearer start, and the two
     lower clutches alone in arms forward settled 0.3 J lower (share 0.02 -> 0.00)."""
     prob = prepare_state(setup.model_of(state.motion.name), design, state, setup.solver)
-    energies = [prob.evaluate(torch.as_tensor(np.asarray(x, dtype=np.float64)), order=0, check=False)[0]
-                for x in starts]
+    energies = [prob.evaluate(torch.as_tensor(np.asarray(x, dtype=np.float64), device=prob.device), order=0,
+                              check=False)[0] for x in starts]
     return starts[int(np.argmin(energies))]
 
 
