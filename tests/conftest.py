@@ -12,12 +12,24 @@ EXTRA_MOTIONS = ("arms_raise.left", "arms_raise.right", "arm_flexion.left", "arm
                  "knee_flexion", "torso_twist_left")
 
 
+def _session_body():
+    lib = builtin_motions()
+    return load_anny_body([lib[n] for n in PAPER_MOTIONS + EXTRA_MOTIONS])
+
+
+def pytest_configure(config):
+    """With pytest-xdist (``make test`` runs ``-n auto``), the controller builds the body's
+    caches (Anny's own, ~2 minutes on a fresh machine, and kgarment's) before the workers
+    start, so that they are built once and not by every worker at the same time."""
+    if getattr(config, "workerinput", None) is None and config.getoption("numprocesses", default=None):
+        _session_body()
+
+
 @pytest.fixture(scope="session")
 def anny_body():
     """The default Anny body posed in the paper's motions and a few more (session-wide)."""
     logging.getLogger("kgarment").setLevel(logging.INFO)
-    lib = builtin_motions()
-    return load_anny_body([lib[n] for n in PAPER_MOTIONS + EXTRA_MOTIONS])
+    return _session_body()
 
 
 @pytest.fixture(scope="session")
