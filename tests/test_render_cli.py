@@ -33,6 +33,23 @@ def test_render_png_size_and_content(tmp_path):
     assert 0.2 < red.mean() < 0.8
 
 
+def test_render_png_draws_the_nearer_face_over_the_farther(tmp_path):
+    """Two squares seen from the front (camera towards -y): a red one 1 m nearer than a
+    blue one, half overlapping it. Given in either order, the overlap must be red; the
+    blue square's uncovered half stays blue."""
+    sq = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], float)
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    red = Layer(sq + [0.5, -1.0, 0.0], faces, (1.0, 0.0, 0.0, 1.0))
+    blue = Layer(sq, faces, (0.0, 0.0, 1.0, 1.0))
+    for k, layers in enumerate(([red, blue], [blue, red])):
+        im = _image(render_png(layers, tmp_path / f"{k}.png", views=("front",), height_px=200))
+        is_red = (im[..., 0] > 100) & (im[..., 2] < 60)
+        is_blue = (im[..., 2] > 100) & (im[..., 0] < 60)
+        # the picture spans 1.5 m; red covers 2/3 of the squares' width, blue the first third
+        cols_red, cols_blue = is_red.any(axis=0).sum(), is_blue.any(axis=0).sum()
+        assert cols_red == pytest.approx(2 * cols_blue, rel=0.1)
+
+
 def test_render_scene_with_values(tmp_path, anny_body, shirt0):
     vals = np.linspace(0, 1, shirt0.n_faces)
     p = render_scene(tmp_path / "s.png", anny_body.vertices("arms_raise"), anny_body.faces,

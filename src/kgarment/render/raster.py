@@ -1,8 +1,12 @@
 """Headless PNG rendering of triangle meshes with per-face colours (no display, no GPU).
 
 Orthographic projection, Lambert shading and painter's-algorithm depth ordering, drawn
-with matplotlib's Agg backend as 2D polygon collections. Good for bodies and garments of
-up to a few hundred thousand triangles (a few seconds a view).
+with matplotlib's Agg backend: all triangles of a view in one call of the renderer's
+``draw_gouraud_triangles`` with the three corners of a face in its colour (flat shading).
+Measured on the main job's final renders (body 26,692 + garment 3,229 faces, 4 views,
+2026-11-26, beside other work): 0.63 s an image against 1.79 s with a PolyCollection,
+which turns every triangle into a matplotlib Path; the pictures are the same but for the
+hairline seams the collection left between unantialiased triangles.
 """
 
 from __future__ import annotations
@@ -47,6 +51,24 @@ class Layer:
     depth_bias: float = 0.0
     offset: float = 0.0
     cull: bool = False
+
+
+def _flat_triangles(tris: np.ndarray, colors: np.ndarray):
+    """A matplotlib artist drawing triangles (k, 3, 2) in data coordinates, each in its
+    colour (k, 4), in array order (later over earlier)."""
+    import matplotlib.artist
+
+    class FlatTriangles(matplotlib.artist.Artist):
+        def draw(self, renderer):
+            if not self.get_visible():
+                return
+            gc = renderer.new_gc()
+            renderer.draw_gouraud_triangles(gc, tris, np.repeat(colors[:, None, :], 3, axis=1),
+                                            self.axes.transData.frozen())
+            gc.restore()
+            self.stale = False
+
+    return FlatTriangles()
 
 
 def _view_frame(view: str):
@@ -97,7 +119,6 @@ def render_png(layers: list[Layer], path, views=STANDARD_VIEWS, height_px: int =
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.collections import PolyCollection
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -115,7 +136,7 @@ def render_png(layers: list[Layer], path, views=STANDARD_VIEWS, height_px: int =
     fig, axes = plt.subplots(1, len(views), figsize=(fig_w, panel_h + (0.4 if title else 0)), dpi=dpi)
     axes = np.atleast_1d(axes)
     for ax, (polys, cols), view, i in zip(axes, projected, views, range(len(views))):
-        ax.add_collection(PolyCollection(polys, facecolors=cols, edgecolors="none", antialiased=False))
+        ax.add_artist(_flat_triangles(polys, cols))
         c = centres[i]
         ax.set_xlim(c[0] - span[0] / 2 - pad, c[0] + span[0] / 2 + pad)
         ax.set_ylim(c[1] - span[1] / 2 - pad, c[1] + span[1] / 2 + pad)
