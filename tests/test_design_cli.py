@@ -119,3 +119,12 @@ def test_resume_from_the_command_line_and_evaluate(tmp_path, anny_body):
     assert "# Control plan" in (tmp_path / "whole" / "plan@1.md").read_text()
     rc, _, err = _cli(["plan", "whole@1"], tmp_path)
     assert rc == 2 and "exists" in err  # an existing plan is not replaced without --force
+    # with the motion from rest competing: the same all-ON / OFF energies as evaluate --path
+    rc, out, err = _cli(["plan", "whole@1", "--path", "2", "--out", "pathplan"], tmp_path)
+    assert rc == 0, err
+    rc, _, err = _cli(["evaluate", "whole@1", "--path", "2", "--json", "p.json"], tmp_path)
+    assert rc == 0, err
+    (gp,) = json.loads((tmp_path / "p.json").read_text())["garment"]
+    rec = json.loads((tmp_path / "pathplan" / "plan@1.json").read_text())["motions"]["arm_flexion.right"]
+    assert rec["best"]["energy_J"] == pytest.approx(gp["energy_on_J"], rel=1e-9)
+    assert rec["energy_off_J"] == pytest.approx(gp["energy_off_J"], rel=1e-9)

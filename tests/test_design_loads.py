@@ -135,3 +135,26 @@ def test_loads_on_cuda_match_the_cpu(tube, tube_loads):
         a, b = tube_loads.loads.get("pull", name), loads.get("pull", name)
         assert b.share == pytest.approx(a.share, abs=0.01)
         assert b.tension_N == pytest.approx(a.tension_N, rel=0.01, abs=0.5)
+
+
+def test_the_control_plan_keeps_a_lower_known_equilibrium(tube, tube_loads):
+    """``known`` (the motion from rest's ends) competes by the evaluator's rule: an ON
+    equilibrium given 10% below the two starts' is kept (the plan's all-ON energy is its
+    energy and the plan says so); one 10% above leaves the plan as it is."""
+    import dataclasses
+
+    from kgarment.design.plan import make_plan, plan_markdown
+
+    evaluator, design = tube
+    (g,) = tube_loads.loads.garment
+    on = next(s.result for s in tube_loads.states if s.key == ("pull", "on"))
+
+    def scaled(f):
+        return dataclasses.replace(on, energy={k: f * v for k, v in on.energy.items()})
+
+    lower = make_plan(evaluator, design, known={("pull", "on"): scaled(0.9)})
+    assert lower.from_path == ("pull:on",) and "from rest" in plan_markdown(lower, "tube")
+    assert lower.all_on("pull").energy_J == pytest.approx(0.9 * on.total_energy, rel=1e-9)
+    higher = make_plan(evaluator, design, known={("pull", "on"): scaled(1.1)})
+    assert higher.from_path == () and higher.to_json()["from_path"] == []
+    assert higher.all_on("pull").energy_J == pytest.approx(g.energy_on_J, rel=1e-6)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from kgarment.cli.common import add_device, integer
+from kgarment.cli.common import FRAMES, add_device, integer
 from kgarment.constants import PLAN_EXHAUSTIVE
 
 
@@ -41,7 +41,18 @@ def cmd_plan(args) -> int:
     how = f"all {2 ** n - 1} sets" if n <= args.exhaustive else "greedy sets"
     print(f"design: {src.run} iteration {k}; {n} clutches, {len(ev.motions)} motions: evaluating {how} ...")
     t0 = time.time()
-    plan = make_plan(ev, design, exhaustive_up_to=args.exhaustive)
+    known = None
+    if args.path:  # the motion's end from rest competes with the two starts, as in evaluate --path
+        from kgarment.design.path import path_forces
+
+        if p.body.phenotypes:
+            raise KgarmentError("--path: the motion from rest is solved on one body; for a multi-body design "
+                                "([body] phenotypes) leave --path out")
+        print(f"the motion from rest first: {args.path} frames to the target pose, ON and OFF")
+        known = path_forces(ev, design, p, frames=args.path).ends
+    plan = make_plan(ev, design, exhaustive_up_to=args.exhaustive, known=known)
+    if plan.from_path:
+        print(f"  kept the motion from rest's end (lower than the two starts'): {', '.join(plan.from_path)}")
     for m in plan.motions:
         if not plan.controllable(m):
             print(f"  {m:22s} no clutch set changes this motion")
@@ -67,6 +78,9 @@ def add_parsers(sub) -> None:
     sp.add_argument("--exhaustive", type=integer(0, 10), default=PLAN_EXHAUSTIVE,
                     help=f"try every clutch subset up to this many clutches, greedy sets beyond "
                          f"(default {PLAN_EXHAUSTIVE})")
+    sp.add_argument("--path", type=FRAMES, metavar="K", help="solve each motion from rest in K frames first; "
+                    "where it ends lower than the evaluator's two starts, the table starts from there (as "
+                    "kgarment evaluate --path K; 10 is a good start)")
     sp.add_argument("--force", action="store_true", help="replace an existing plan")
     add_device(sp)
     sp.set_defaults(func=cmd_plan)

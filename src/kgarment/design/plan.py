@@ -23,7 +23,10 @@ paper's two-motion sleeve switches the opposing clutch off "to prevent full arm-
 Equilibria come from the one design evaluator (ON and all OFF from its two starts,
 :func:`kgarment.design.loads.on_off_equilibria`, as the clutch loads; a set starts from the
 ON equilibrium, :func:`kgarment.design.loads.activation_equilibria`), so the ON and all-OFF
-energies are those of ``kgarment evaluate``.
+energies are those of ``kgarment evaluate``.  With ``known`` (the ends of the motion from
+rest, ``kgarment plan --path K`` and the reproduction) they compete with the two starts by
+the evaluator's rule (:func:`kgarment.design.evaluate.with_known`), as in ``kgarment
+evaluate --path K``; every set then starts from the nearer of the equilibria kept.
 """
 
 from __future__ import annotations
@@ -72,6 +75,7 @@ class Plan:
     energy_off_J: dict
     exhaustive: bool
     designed: dict = field(default_factory=dict)  # {motion: clutch names} of the problem's activation sets
+    from_path: tuple = ()  # "motion:on" / "motion:off" whose equilibrium is the motion from rest's end
 
     def sets(self, motion: str) -> list[SetResult]:
         return [r for r in self.results if r.motion == motion]
@@ -128,23 +132,35 @@ class Plan:
                       "elsewhere": {o: self.find(o, s.clutches).row() for o in self.motions
                                     if o != m and self.find(o, s.clutches) is not None}}
         return {"clutches": list(self.clutch_names), "exhaustive": self.exhaustive, "keep": PLAN_KEEP,
-                "lock": PLAN_LOCK, "motions": per, "sets": [r.row() for r in self.results]}
+                "lock": PLAN_LOCK, "motions": per, "sets": [r.row() for r in self.results],
+                "from_path": list(self.from_path)}
 
 
 def _label(names) -> str:
     return "+".join(names) if names else "none"
 
 
-def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int = PLAN_EXHAUSTIVE) -> Plan:
+def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int = PLAN_EXHAUSTIVE,
+              known: dict | None = None) -> Plan:
     """The :class:`Plan` of ``design`` (m,) on ``motions`` (default: the evaluator's), with
     every subset of the clutches when there are at most ``exhaustive_up_to`` of them,
-    greedy sets otherwise."""
+    greedy sets otherwise.  ``known``: {(motion, "on" | "off"): StateResult} equilibria
+    found otherwise (the ends of the motion from rest, ``PathReport.ends``), kept instead of
+    the two starts' by :func:`kgarment.design.evaluate.with_known`."""
+    from kgarment.design.evaluate import Equilibrium, with_known
+
     setup = evaluator.setup
     names = tuple(c.name for c in setup.model.clutches)
     K = len(names)
     motions = evaluator.motion_names(motions)
     design = np.asarray(design, dtype=np.float64)
-    keyed, known = on_off_equilibria(evaluator, design, motions)
+    keyed, known_eq = on_off_equilibria(evaluator, design, motions)
+    from_path = []
+    for key, end in (known or {}).items():
+        if key in known_eq and (eq := with_known(Equilibrium(known_eq[key]), end)).from_path:
+            known_eq[key] = eq.result
+            from_path.append(f"{key[0]}:{key[1]}")
+    known = known_eq
     states = dict(keyed)
     full = tuple(range(K))
     for m in motions:  # the all-clutches set is the evaluation's ON state unless the motion has its own set
@@ -198,7 +214,7 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
     designed = {m: tuple(n for n, a in zip(names, setup.on_activation(m)) if a > 0) for m in motions
                 if not np.all(setup.on_activation(m) == 1.0)}
     return Plan(tuple(motions), names, tuple(results), {m: float(known[(m, "off")].total_energy) for m in motions},
-                K <= exhaustive_up_to, designed)
+                K <= exhaustive_up_to, designed, tuple(from_path))
 
 
 def plan_markdown(plan: Plan, title: str) -> str:
@@ -212,7 +228,9 @@ def plan_markdown(plan: Plan, title: str) -> str:
           f"with {PLAN_LOCK:.0%} or more of that motion's all-ON resistance. "
           + ("Every subset of the clutches was evaluated." if plan.exhaustive else
              "Sets found by a greedy search per motion (more clutches than the exhaustive limit).")
-          + ("".join(f" Designed for: {m} -> {', '.join(v)}." for m, v in plan.designed.items())), "",
+          + ("".join(f" Designed for: {m} -> {', '.join(v)}." for m, v in plan.designed.items()))
+          + (f" Ended lower over the motion from rest than from the evaluator's two starts, and kept: "
+             f"{', '.join(plan.from_path)}." if plan.from_path else ""), "",
           "| motion | switch on | resistance (J) | of all ON | tensions (N) | locks |", "|---|---|---|---|---|---|"]
     for m in plan.motions:
         if not plan.controllable(m):

@@ -75,6 +75,7 @@ class CachedEvaluator:
         self.evaluator = Evaluator.from_problem(problem, body=self.body, garment=self.garment, strips=self.strips,
                                                 device=device, objective="active")
         self.setup = self.evaluator.setup
+        self._paths: dict = {}  # (design key, frames) -> PathReport (:meth:`_path_report`)
 
     @property
     def motions(self) -> list[str]:
@@ -97,22 +98,21 @@ class CachedEvaluator:
             self.cache.put(key, out)
         return out
 
-    def evaluate_with_path(self, design: np.ndarray, label: str, frames: int) -> tuple[dict, dict]:
-        """(evaluation with loads, force over the motion) of ``design`` (m,): the motion
-        solved from rest in ``frames`` frames first, its last frames then competing with the
-        evaluation's two starts (:meth:`kgarment.design.Evaluator.evaluate`'s ``known``), so
-        the report's rho, loads and force curves are of the equilibrium the wearer reaches
-        where it is the lower.  Both cached like the evaluations."""
-        from kgarment.design.path import path_forces
-
+    def evaluate_with_path(self, design: np.ndarray, label: str, frames: int, loads: bool = True) -> tuple[dict, dict]:
+        """(evaluation, with ``loads`` the per-clutch loads; force over the motion) of
+        ``design`` (m,): the motion solved from rest in ``frames`` frames first, its last
+        frames then competing with the evaluation's two starts
+        (:meth:`kgarment.design.Evaluator.evaluate`'s ``known``), so the report's rho, loads
+        and force curves are of the equilibrium the wearer reaches where it is the lower.
+        Both cached like the evaluations."""
         design = np.asarray(design, dtype=np.float64)
-        key = f"{self.name}|{design_key(design)}|loads2|path{frames}"
+        key = f"{self.name}|{design_key(design)}" + ("|loads2" if loads else "") + f"|path{frames}"
         pkey = self._path_key(design, frames)
         if self.cache is not None and (hit := self.cache.get(key)) is not None \
                 and (phit := self.cache.get(pkey)) is not None:
             return hit, phit
-        path = path_forces(self.evaluator, design, self.problem, frames=frames)
-        out = {"label": label, **self.evaluator.evaluate(design, loads=True, known=path.ends).to_json()}
+        path = self._path_report(design, frames)
+        out = {"label": label, **self.evaluator.evaluate(design, loads=loads, known=path.ends).to_json()}
         frames_json = path.to_json()
         if self.cache is not None:
             self.cache.put(pkey, frames_json)
@@ -122,16 +122,29 @@ class CachedEvaluator:
     def _path_key(self, design: np.ndarray, frames: int) -> str:
         return f"{self.name}|{design_key(design)}|path{frames}|v2"  # v2: the end anchored at the target's equilibrium
 
-    def plan(self, design: np.ndarray) -> dict:
+    def _path_report(self, design: np.ndarray, frames: int):
+        """:func:`kgarment.design.path.path_forces` of ``design`` (m,), kept for this object's
+        life (its ends serve the evaluation and the control table of the same design)."""
+        from kgarment.design.path import path_forces
+
+        k = (design_key(design), frames)
+        if k not in self._paths:
+            self._paths[k] = path_forces(self.evaluator, design, self.problem, frames=frames)
+        return self._paths[k]
+
+    def plan(self, design: np.ndarray, frames: int = 0) -> dict:
         """The control table of ``design`` (m,) (:func:`kgarment.design.plan.make_plan`: every
-        clutch set in every motion) as JSON, cached like the evaluations."""
+        clutch set in every motion) as JSON, cached like the evaluations; with ``frames`` the
+        motion from rest in that many frames first, its ends competing with the two starts
+        (``make_plan``'s ``known``) as in :meth:`evaluate_with_path`."""
         from kgarment.design.plan import make_plan
 
         design = np.asarray(design, dtype=np.float64)
-        key = f"{self.name}|{design_key(design)}|plan"
+        key = f"{self.name}|{design_key(design)}|plan" + (f"|path{frames}" if frames else "")
         if self.cache is not None and (hit := self.cache.get(key)) is not None:
             return hit
-        out = make_plan(self.evaluator, design).to_json()
+        known = self._path_report(design, frames).ends if frames else None
+        out = make_plan(self.evaluator, design, known=known).to_json()
         if self.cache is not None:
             self.cache.put(key, out)
         return out

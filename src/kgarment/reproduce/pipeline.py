@@ -115,7 +115,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         entry["evaluations"][kind] = ev.evaluate(d, kind, loads=kind in LOADED)
     lap("evaluations")
     if exp.multi and len(ev.strips) <= PLAN_CLUTCHES:
-        entry["plan"] = ev.plan(ours.design)
+        entry["plan"] = ev.plan(ours.design, res.path_frames)
     lap("plan")
     if res.path_frames > 0:
         entry["path"] = {}
@@ -165,7 +165,9 @@ def cross_evaluate(group: str, results: dict, res, out: Path, cache: EvaluationC
         with np.load(out / "designs" / f"{e['name']}.npz") as z:
             design = design_values(z["ours"])
         (motion,) = e["motions"]
-        columns[motion] = ev.evaluate(design, f"{e['name']} on {multi}")["rho"]
+        label = f"{e['name']} on {multi}"  # the motion from rest competing, as in the multi design's column
+        columns[motion] = (ev.evaluate_with_path(design, label, res.path_frames, loads=False)[0] if res.path_frames
+                           else ev.evaluate(design, label))["rho"]
     columns["all"] = results[multi]["evaluations"]["ours"]["rho"]
     return {"problem": multi, "motions": ev.motions,
             "rho_on": {row: {col: columns[col][row]["on"] for col in columns} for row in ev.motions},

@@ -83,7 +83,9 @@ def plan_lines(e: dict) -> list[str]:
     motions = list(plan["motions"])
     md += ["Clutch sets (`kgarment plan` of our design): garment energy with the set ON minus all OFF, J "
            "(share of all clutches ON); **bold**: the set recommended for the motion (the fewest clutches "
-           f"keeping {plan['keep']:.0%}).", ""]
+           f"keeping {plan['keep']:.0%})."
+           + (f" ON / OFF equilibria from the motion from rest (lower than the two starts'): "
+              f"{', '.join(plan['from_path'])}." if plan.get("from_path") else ""), ""]
     rec = {m: tuple(plan["motions"][m]["recommended"]["clutches"]) for m in motions}
     rows, seen = [], []
     for r in plan["sets"]:
