@@ -113,3 +113,24 @@ def test_balance_pushes_only_clutches_that_carry_little():
     np.testing.assert_allclose(combine_sensitivities("active", a, ["pull"], 0.0, bw, e), want)
     with pytest.raises(ValueError, match="energies"):
         combine_sensitivities("active", a, ["pull"], 0.0, bw)
+
+
+def test_the_control_table_agrees_with_the_evaluation_on_designed_and_locking_sets():
+    """Pull's set {a}, twist's {b}, a lockout: in the control table, each motion's own set
+    is its evaluated ON state and the other motion's set its evaluated lock state (solved
+    the evaluator's way, the same equilibria), so the two never give two energies for one
+    state."""
+    from kgarment.design import Evaluator
+    from kgarment.design.plan import make_plan
+
+    sets = {"pull": np.array([1.0, 0.0]), "twist": np.array([0.0, 1.0])}
+    ev = Evaluator(tube_setup(sets, lockout=1.0))
+    design = np.where(np.arange(ev.n_faces) % 3 == 0, 1e-3, 1.0)
+    res = ev.evaluate(design)
+    energy = {s.key: s.result.total_energy for s in res.states}
+    plan = make_plan(ev, design)
+    for m, own, other in (("pull", "a", "b"), ("twist", "b", "a")):
+        assert plan.get(m, [own]).energy_J == pytest.approx(energy[(m, "on")], rel=1e-12)
+        lock = "twist" if m == "pull" else "pull"
+        assert plan.get(m, [other]).energy_J == pytest.approx(energy[(m, f"lock:{lock}")], rel=1e-9)
+        assert plan.energy_off_J[m] == pytest.approx(energy[(m, "off")], rel=1e-12)

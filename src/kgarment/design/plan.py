@@ -22,8 +22,13 @@ paper's two-motion sleeve switches the opposing clutch off "to prevent full arm-
 
 Equilibria come from the one design evaluator (ON and all OFF from its two starts,
 :func:`kgarment.design.loads.on_off_equilibria`, as the clutch loads; a set starts from the
-ON equilibrium, :func:`kgarment.design.loads.activation_equilibria`), so the ON and all-OFF
-energies are those of ``kgarment evaluate``.  With ``known`` (the ends of the motion from
+nearer of the ON and OFF equilibria, :func:`kgarment.design.loads.activation_equilibria`),
+so the ON and all-OFF energies are those of ``kgarment evaluate``.  A motion's own
+activation set is its ON state; another motion's set is solved like the evaluator's
+``lock:`` states (two starts, the lower kept): on the default-resolution selective sleeve
+(2026-11-26) the inner clutch alone in flexion, started from the nearer equilibrium,
+settled at 0.79 of the all-ON resistance where the evaluator's lock row kept an
+equilibrium at rho 0.07 (its other start's at 0.96): two answers for one state.  With ``known`` (the ends of the motion from
 rest, ``kgarment plan --path K`` and the reproduction) they compete with the two starts by
 the evaluator's rule (:func:`kgarment.design.evaluate.with_known`), as in ``kgarment
 evaluate --path K``; every set then starts from the nearer of the equilibria kept.
@@ -163,20 +168,32 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
     known = known_eq
     states = dict(keyed)
     full = tuple(range(K))
-    for m in motions:  # the all-clutches set is the evaluation's ON state unless the motion has its own set
-        if np.all(setup.on_activation(m) == 1.0):
-            known[(m, _label(names))] = known[(m, "on")]
-            states[(m, _label(names))] = states[(m, "on")]
+    for m in motions:  # the motion's ON set (all clutches unless it has its own) is the evaluation's ON state
+        on = setup.on_activation(m)
+        if np.all((on == 0.0) | (on == 1.0)) and on.any():
+            label = _label(names[i] for i in np.flatnonzero(on))
+            known[(m, label)] = known[(m, "on")]
+            states[(m, label)] = states[(m, "on")]
+
+    designed_sets = {tuple(setup.on_activation(m)) for m in motions if not np.all(setup.on_activation(m) == 1.0)}
 
     def solve(sets, ms):
-        keyed = []
+        keyed, locks = [], []
         for idx in sets:
             g = np.zeros(K)
             g[list(idx)] = 1.0
-            keyed += [k for k in evaluator.activation_states(g, ms, _label(names[i] for i in idx)) if k[0] not in known]
+            for key, st in evaluator.activation_states(g, ms, _label(names[i] for i in idx)):
+                if key in known:
+                    continue
+                # another motion's designed set: solved like the evaluator's lock states (its
+                # two starts, the lower kept), so the table says what evaluate's lock rows say
+                lock = tuple(g) in designed_sets and not np.array_equal(g, setup.on_activation(key[0]))
+                (locks if lock else keyed).append((key, st))
+        if locks:
+            known.update(zip([k for k, _ in locks], evaluator.equilibria(design, locks)))
         if keyed:
             known.update(activation_equilibria(evaluator, design, keyed, known))
-            states.update(dict(keyed))
+        states.update(dict(keyed + locks))
 
     def energy(m, idx):
         return known[(m, _label(names[i] for i in idx))].total_energy
