@@ -4,6 +4,7 @@ with the paper, and the performance tables; all computed from ``results.json``."
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -146,8 +147,8 @@ def comparison_paragraph(doc: dict) -> str:
             + off_txt +
             " Part of the difference comes from the setting: the body is Anny (smaller than the "
             "paper's STAR body, with its own rig and motion magnitudes), our shirt clutches follow the paper's layout "
-            "but are 10-13.5 cm long rather than 15 cm, the garment is at the report's resolution (subdivision 0 has "
-            "18 mm edges, 4x coarser than the paper's), the `" + doc.get("preset", "paper") + "` material preset is used ("
+            "but are 10-13.5 cm long rather than 15 cm, the garment is at the report's resolution ("
+            + resolution_words(doc) + "), the `" + doc.get("preset", "paper") + "` material preset is used ("
             + PRESET_WORDS.get(doc.get("preset", "paper"), "") + ")"
             + (", the clutches slip at their holding force (the paper's never do)" if "slip" in doc.get("clutch_model", "")
                else "") + ", and our Newton solver finds tighter equilibria than the paper's L-BFGS. rho is a ratio to "
@@ -155,6 +156,21 @@ def comparison_paragraph(doc: dict) -> str:
             + (f" Where we fall more than 2x short ({names([r for r in under if r[0] < 0.5])}), see the experiment "
                "below: its design carries no load path through the clutch for that motion." if any(
                    r[0] < 0.5 for r in under) else ""))
+
+
+PAPER_SHIRT_FACES = 56384  # the paper's shirt mesh (method.md)
+
+
+def resolution_words(doc: dict) -> str:
+    """The report's garment resolution in words: its subdivision level and, where a shirt
+    was designed, how its edges compare with the paper's shirt's (edge ~ 1 / sqrt(faces))."""
+    sub = doc.get("resolution", {}).get("subdivision")
+    level = f"subdivision {sub}" if sub is not None else "the example files' subdivision"
+    shirts = [e["faces"] for e in doc["experiments"].values() if e.get("group") == "shirt" and e.get("faces")]
+    if not shirts:
+        return level
+    f = min(shirts)
+    return f"{level}: a {f:,}-face shirt, edges about {math.sqrt(PAPER_SHIRT_FACES / f):.1f}x the paper's {PAPER_SHIRT_FACES:,}-face shirt's"
 
 
 PRESET_WORDS = {"paper": "the paper's text: plain cloth 0.5 MPa, reinforced 0.5 GPa, clutch ON 3 GPa",
