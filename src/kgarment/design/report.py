@@ -10,7 +10,7 @@ import numpy as np
 from kgarment.design.beso import design_values
 from kgarment.design.run import progress_plot
 from kgarment.io import atomic_save_npz, atomic_write_bytes, atomic_write_text, write_ply
-from kgarment.render import render_design, render_scene
+from kgarment.render import faces_near, render_design, render_scene
 
 log = logging.getLogger(__name__)
 REINFORCED = (0.15, 0.20, 0.45, 1.0)
@@ -47,7 +47,9 @@ def finish_run(run: Path, setup, st, body, garment, strips, iteration: int, equi
                     iteration=np.array(iteration))
     paths.append(final / "design.npz")
     paths.append(write_design_mesh(final / "design.ply", garment.rest_vertices, garment.faces, design))
-    paths.append(render_design(final / "design.png", body.rest_vertices, body.faces, garment.rest_vertices,
+    # pictures framed on the garment (within 5 cm of it): a sleeve is a small part of the body
+    paths.append(render_design(final / "design.png", body.rest_vertices,
+                               faces_near(body.rest_vertices, body.faces, garment.rest_vertices), garment.rest_vertices,
                                garment.faces, design, clutches=[(c.vertices, c.faces) for c in strips],
                                title=f"{garment.name}: final design (iteration {iteration})"))
     keyed = setup.states()
@@ -63,8 +65,9 @@ def finish_run(run: Path, setup, st, body, garment, strips, iteration: int, equi
         w = setup.wearers.get(key[0])  # a multi-body design's: this motion's body and garment
         on, pose, model = (body, key[0], setup.model) if w is None else (w.body, w.motion, w.model)
         gx, cx = model.split(r.x)
-        paths.append(render_scene(final / f"energy_{key[0]}_{key[1].replace(':', '-')}.png", on.vertices(pose),
-                                  on.faces, gx, garment.faces, face_values=r.garment_density, vmin=0.0,
+        bv = on.vertices(pose)
+        paths.append(render_scene(final / f"energy_{key[0]}_{key[1].replace(':', '-')}.png", bv,
+                                  faces_near(bv, on.faces, gx), gx, garment.faces, face_values=r.garment_density, vmin=0.0,
                                   vmax=vmax[key[0]], clutches=[(x, c.faces) for c, x in zip(model.clutches, cx)],
                                   clutch_activation=s.activation, value_label="energy density (J/m^2)",
                                   title=f"{garment.name}: {key[0]}, clutches {_state_title(key[1])}"))

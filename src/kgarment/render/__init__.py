@@ -1,6 +1,6 @@
 """Headless pictures of bodies, garments and clutches."""
 
 from kgarment.render.raster import STANDARD_VIEWS, VIEWS, Layer, render_png
-from kgarment.render.scene import face_colors, render_design, render_poses, render_scene
+from kgarment.render.scene import face_colors, faces_near, render_design, render_poses, render_scene
 
-__all__ = ["Layer", "STANDARD_VIEWS", "VIEWS", "face_colors", "render_design", "render_png", "render_poses", "render_scene"]
+__all__ = ["STANDARD_VIEWS", "VIEWS", "Layer", "face_colors", "faces_near", "render_design", "render_png", "render_poses", "render_scene"]

@@ -27,6 +27,18 @@ def face_colors(values: np.ndarray, cmap: str = "viridis", vmin=None, vmax=None)
     return matplotlib.colormaps[cmap](np.clip(t, 0, 1)), vmin, vmax
 
 
+def faces_near(body_vertices: np.ndarray, body_faces: np.ndarray, garment_vertices: np.ndarray,
+               margin: float = 0.05) -> np.ndarray:
+    """The body faces (k, 3) of ``body_faces`` (mb, 3) whose vertices (nb, 3) all lie within
+    ``margin`` metres of the garment's bounding box (garment vertices (n, 3)): a picture
+    framed on the garment (a sleeve is a small part of the whole body)."""
+    bv = np.asarray(body_vertices)
+    g = np.asarray(garment_vertices)
+    lo, hi = g.min(0) - margin, g.max(0) + margin
+    inside = np.all((bv >= lo) & (bv <= hi), axis=1)
+    return np.asarray(body_faces)[inside[np.asarray(body_faces)].all(axis=1)]
+
+
 def render_scene(path, body_vertices, body_faces, garment_vertices=None, garment_faces=None,
                  attached=None, face_values=None, clutches=(), clutch_activation=None,
                  views=STANDARD_VIEWS, title=None, cmap="viridis", value_label="",

@@ -28,7 +28,7 @@ import numpy as np
 from kgarment.design import design_values
 from kgarment.errors import KgarmentError
 from kgarment.io import atomic_write_text
-from kgarment.render import render_design
+from kgarment.render import faces_near, render_design
 from kgarment.reproduce.baselines import anchor_rings, manual_design, random_design
 from kgarment.reproduce.catalog import objectives_at_target
 from kgarment.reproduce.evaluate import CachedEvaluator, EvaluationCache
@@ -53,10 +53,8 @@ LOADED = ("ours", "manual")  # designs evaluated with clutch loads (and, with pa
 
 def _render_design(path: Path, ev: CachedEvaluator, design: np.ndarray, title: str) -> str:
     g = ev.garment
-    bv, bf = ev.body.rest_vertices, ev.body.faces
-    lo, hi = g.rest_vertices.min(0) - 0.05, g.rest_vertices.max(0) + 0.05  # frame the garment, not the body
-    inside = np.all((bv >= lo) & (bv <= hi), axis=1)
-    bf = bf[inside[bf].all(axis=1)]
+    bv = ev.body.rest_vertices
+    bf = faces_near(bv, ev.body.faces, g.rest_vertices)  # frame the garment, not the body
     render_design(path, bv, bf, g.rest_vertices, g.faces, design, clutches=[(c.vertices, c.faces) for c in ev.strips],
                   title=title, height_px=260)
     return path.name
