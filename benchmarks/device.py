@@ -20,17 +20,9 @@ import time
 import numpy as np
 
 
-def best_of(fn, repeat: int = 5) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
-
-
 def main() -> None:
     import torch
+    from scaling import best_of
     from solver import designs, setup
 
     from kgarment.sim import SolverOptions, solve_states
@@ -51,7 +43,7 @@ def main() -> None:
             x = torch.as_tensor(prob.initial_positions(), device=dev)
             x = x + 1e-4 * torch.sin(torch.arange(x.numel(), device=dev, dtype=x.dtype).reshape(x.shape))
             prob.evaluate(x, order=2, exact=True)  # warm the caches
-            t = best_of(lambda p=prob, x=x: p.evaluate(x, order=2, exact=True))
+            t = best_of(lambda p=prob, x=x: p.evaluate(x, order=2, exact=True), 5)
             e, gr, h = prob.evaluate(x, order=2, exact=True)
             out[dev] = (float(e), gr.detach().cpu().numpy().ravel(), np.asarray(h).ravel())
             print(f"subdivision {sub} ({g.n_faces} faces) {dev}: evaluate (order 2) {1e3 * t:.1f} ms")
