@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from tiny_problems import TINY_SLEEVE
 
 from kgarment.cli import main
 from kgarment.constants import target_reached
@@ -52,17 +53,7 @@ def test_levels_are_checked():
     assert "levels" not in parse_problem({}).design.flat()  # earlier runs' files unchanged
 
 
-SLEEVE = """
-[garment]
-template = "arm_sleeve.right"
-subdivision = 1
-[motions]
-use = ["arm_flexion.right"]
-[clutches]
-layout = "arm_flexion"
-[materials]
-preset = "reference"
-[design]
+SLEEVE = TINY_SLEEVE.replace("subdivision = 0", "subdivision = 1") + """[design]
 levels = [0]
 target_area = 0.6
 er = 0.15

@@ -28,10 +28,11 @@ activation set is its ON state; another motion's set is solved like the evaluato
 ``lock:`` states (two starts, the lower kept): on the default-resolution selective sleeve
 (2026-11-26) the inner clutch alone in flexion, started from the nearer equilibrium,
 settled at 0.79 of the all-ON resistance where the evaluator's lock row kept an
-equilibrium at rho 0.07 (its other start's at 0.96): two answers for one state.  With ``known`` (the ends of the motion from
-rest, ``kgarment plan --path K`` and the reproduction) they compete with the two starts by
-the evaluator's rule (:func:`kgarment.design.evaluate.with_known`), as in ``kgarment
-evaluate --path K``; every set then starts from the nearer of the equilibria kept.
+equilibrium at rho 0.07 (its other start's at 0.96): two answers for one state.  With
+``known`` (the ends of the motion from rest, ``kgarment plan --path K`` and the
+reproduction) they compete with the two starts by the evaluator's rule
+(:func:`kgarment.design.evaluate.with_known`), as in ``kgarment evaluate --path K``; every
+set then starts from the nearer of the equilibria kept.
 """
 
 from __future__ import annotations
@@ -175,7 +176,8 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
             known[(m, label)] = known[(m, "on")]
             states[(m, label)] = states[(m, "on")]
 
-    designed_sets = {tuple(setup.on_activation(m)) for m in motions if not np.all(setup.on_activation(m) == 1.0)}
+    own = {m: setup.on_activation(m) for m in motions if not np.all(setup.on_activation(m) == 1.0)}  # activation sets
+    designed_sets = {tuple(g) for g in own.values()}
 
     def solve(sets, ms):
         keyed, locks = [], []
@@ -228,8 +230,7 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
             frac = res / gain if gain > MIN_GAIN * abs(off.total_energy) else float("nan")
             results.append(SetResult(m, tuple(names[i] for i in idx), float(r.total_energy), float(res), float(frac),
                                      {names[i]: float(t[i]) for i in idx}, bool(r.converged)))
-    designed = {m: tuple(n for n, a in zip(names, setup.on_activation(m)) if a > 0) for m in motions
-                if not np.all(setup.on_activation(m) == 1.0)}
+    designed = {m: tuple(n for n, a in zip(names, g) if a > 0) for m, g in own.items()}
     return Plan(tuple(motions), names, tuple(results), {m: float(known[(m, "off")].total_energy) for m in motions},
                 K <= exhaustive_up_to, designed, tuple(from_path))
 

@@ -152,13 +152,11 @@ class CachedEvaluator:
     def path(self, design: np.ndarray, frames: int) -> dict:
         """The force over the motion of ``design`` (m,) in ``frames`` frames, ON and OFF
         (:func:`kgarment.design.path.path_forces`) as JSON, cached like the evaluations."""
-        from kgarment.design.path import path_forces
-
         design = np.asarray(design, dtype=np.float64)
         key = self._path_key(design, frames)
         if self.cache is not None and (hit := self.cache.get(key)) is not None:
             return hit
-        out = path_forces(self.evaluator, design, self.problem, frames=frames).to_json()
+        out = self._path_report(design, frames).to_json()
         if self.cache is not None:
             self.cache.put(key, out)
         return out
