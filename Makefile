@@ -34,7 +34,7 @@ demo: $(STAMP)
 	$(VENV)/bin/kgarment demo --out $(OUT)
 
 test: $(STAMP)
-	$(VPY) -m pytest -q -n auto --dist loadscope tests
+	$(VPY) -m pytest -q -n auto --dist loadscope --no-loadscope-reorder tests
 
 bench: $(STAMP)
 	$(VPY) benchmarks/solver.py

@@ -25,6 +25,25 @@ def pytest_configure(config):
         _session_body()
 
 
+# Scheduling under pytest-xdist (``make test``: ``-n auto --dist loadscope
+# --no-loadscope-reorder``): each module stays on one worker (its module fixtures are built
+# once) and the modules are handed out in collection order, so the ones that take longest
+# are collected first (longest first keeps the two workers' ends together: a 3-minute
+# module handed out last leaves the other core idle for 3 minutes); the rest keep their
+# order.  (xdist's ``loadgroup`` would let single tests spread, but with pytest 9 its groups
+# are ignored: it renames ``item._nodeid``, which pytest 9 no longer reads.)
+LONGEST_FIRST = ("test_reproduce", "test_sweep", "test_examples", "test_design_cli", "test_studio_browser",
+                 "test_studio_app", "test_render_cli", "test_design_refine", "test_sim_shirt", "test_design_wearers")
+
+
+def pytest_collection_modifyitems(config, items):
+    def rank(item):
+        name = item.module.__name__
+        return LONGEST_FIRST.index(name) if name in LONGEST_FIRST else len(LONGEST_FIRST)
+
+    items[:] = sorted(items, key=rank)  # stable: each module's own order kept
+
+
 @pytest.fixture(scope="session")
 def anny_body():
     """The default Anny body posed in the paper's motions and a few more (session-wide)."""

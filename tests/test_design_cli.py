@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import pytest
+from cli_runner import run_cli
 from tiny_problems import TINY_SLEEVE
 
 SLEEVE = TINY_SLEEVE + """[design]
@@ -19,8 +20,7 @@ max_iterations = {iterations}
 
 
 def _cli(args, cwd):
-    r = subprocess.run([sys.executable, "-m", "kgarment.cli", *args], capture_output=True, text=True, cwd=cwd)
-    return r.returncode, r.stdout, r.stderr
+    return run_cli(args, cwd)
 
 
 @pytest.mark.parametrize("objective", ["active", "passive", "compliance"])

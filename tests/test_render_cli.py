@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 import trimesh
+from cli_runner import run_cli
 
 from kgarment.body import load_mesh_sequence
 from kgarment.cli import main
@@ -88,8 +86,7 @@ def test_mesh_sequence_mismatch_and_missing(tmp_path):
 
 
 def _cli(args, tmp_path):
-    r = subprocess.run([sys.executable, "-m", "kgarment.cli", *args], capture_output=True, text=True, cwd=tmp_path)
-    return r.returncode, r.stdout, r.stderr
+    return run_cli(args, tmp_path)
 
 
 @pytest.mark.parametrize("cmd", [[], ["motions"], ["garments"], ["render"], ["demo"], ["clutches"], ["simulate"], ["design"], ["evaluate"], ["examples"], ["fabricate"], ["studio"]])

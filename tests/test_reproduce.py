@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from cli_runner import run_cli
 
 from kgarment.design.evaluate import MULTISTABLE
 from kgarment.garment.topology import triangle_areas
@@ -92,8 +91,7 @@ def test_best_iteration_is_the_best_converged_one_at_the_target():
 
 
 def _cli(args, cwd):
-    r = subprocess.run([sys.executable, "-m", "kgarment.cli", "-q", *args], capture_output=True, text=True, cwd=cwd)
-    return r.returncode, r.stdout, r.stderr
+    return run_cli(["-q", *args], cwd)
 
 
 def test_unknown_experiment_is_a_one_line_error(tmp_path):
