@@ -69,8 +69,9 @@ def build_model(problem: Problem, garment: Garment, strips) -> SimModel:
     """The simulation model of the garment and ``strips`` in the problem's material preset
     and clutch hardware (no clutches for the passive objective)."""
     strips = list(strips) if problem.design.objective != "passive" else []
+    hw = problem.clutch_spec().hardware
     return build_sim_model(garment.rest_vertices, garment.faces, strips, preset=problem.materials.preset,
-                           holding_force=holding_forces(problem.clutch_spec().hardware, strips))
+                           holding_force=holding_forces(hw, strips), clutch_buckle=hw.buckle)
 
 
 def holding_forces(hw: ClutchHardware, strips) -> np.ndarray | None:

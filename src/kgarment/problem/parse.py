@@ -326,7 +326,7 @@ class _DesignOwn:
 
 
 HARDWARE = ("model", "holding_stress", "voltage", "dielectric_thickness", "permittivity", "friction",
-            "holding_force")
+            "holding_force", "buckle")
 
 
 def _hardware(c: dict) -> ClutchHardware:

@@ -63,6 +63,10 @@ class ClutchHardware:
     voltage : V; > 0: the holding stress from the parallel-plate formula with
         ``dielectric_thickness`` (m), ``permittivity`` (relative) and ``friction``.
     holding_force : ((clutch name or "*", N), ...) overriding the stress per clutch.
+    buckle : ON clutch strips take no compression (they buckle, as the cloth wrinkles: the
+        wrinkling relaxation on the strips too, and a slipping clutch's slider pulls only);
+        False is the paper's model, where a clutch resists being shortened with its full
+        stiffness (a 0.35 mm strip 1 cm wide buckles at well under 1 N).
     """
 
     model: str = "locked"
@@ -72,6 +76,7 @@ class ClutchHardware:
     permittivity: float = C.DIELECTRIC_PERMITTIVITY
     friction: float = C.CLUTCH_FRICTION
     holding_force: tuple[tuple[str, float], ...] = ()
+    buckle: bool = False
 
     def __str__(self) -> str:
         return ", ".join(f"{k} {v}" for k, v in self.to_dict().items()) or "model locked"

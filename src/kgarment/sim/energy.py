@@ -139,7 +139,8 @@ class StateProblem:
         young[sid], thick[sid] = model.preset.young_clutch_off, model.preset.thick_clutch_off
         self.sliders = None if len(sid) == 0 else SliderSet(
             element=T(sid, torch.long), tri=T(el.tri[sid], torch.long),
-            coef=T(model.slip_coef[sid - model.n_faces]), area=T(el.area[sid]), k=T(sk), cap=T(scap))
+            coef=T(model.slip_coef[sid - model.n_faces]), area=T(el.area[sid]), k=T(sk), cap=T(scap),
+            pull_only=model.clutch_buckle)
         mu, lam = lame_plane_stress(young, model.preset.poisson)
         self.tri = T(el.tri, torch.long)
         self.G = T(el.shape_grad)

@@ -68,7 +68,8 @@ class SimModel:
     vertex_offsets : (K + 2,) clutch k owns vertices [off[k+1], off[k+2]); garment [0, n)
     face_offsets : (K + 2,) same for elements (garment faces first)
     elements : TriangleElements over all M elements (clutch ones on their rest shape)
-    relaxed : (M,) bool, wrinkling relaxation (garment elements only)
+    relaxed : (M,) bool, wrinkling relaxation (garment elements; clutch elements too where
+        ``clutch_buckle``)
     vertex_area : (N,) lumped rest area, m^2
     mean_edge : mean garment rest edge length L, m
     static_springs : anchors and ties (motion-independent)
@@ -78,6 +79,8 @@ class SimModel:
         (the paper's model, an ON clutch never slips).  None: every clutch locked.
     slip_coef : (M - m, 3) axial shape coefficients of the clutch elements (1/m)
     strip_width : (K,) each strip's mean rest width, m
+    clutch_buckle : the clutch strips take no compression (``[clutches] buckle``): their
+        elements relax like the cloth's and their sliders (``sim.slip``) only pull
     """
 
     preset: MaterialPreset
@@ -96,6 +99,7 @@ class SimModel:
     holding_force: np.ndarray | None = None
     slip_coef: np.ndarray | None = field(default=None, repr=False)
     strip_width: np.ndarray | None = None
+    clutch_buckle: bool = False
 
     @property
     def slips(self) -> bool:
@@ -153,13 +157,15 @@ def build_model(
     preset: str | MaterialPreset = "paper",
     penalties: PenaltyParams = PenaltyParams(),
     holding_force=None,
+    clutch_buckle: bool = False,
 ) -> SimModel:
     """Build the simulation model.
 
     garment_vertices : (n, 3) rest positions, m;  garment_faces : (m, 3) int;
     clutches : ClutchStrip list (bound to this garment);  preset : "paper" | "reference";
     holding_force : None (every clutch locked, the paper's model) or (K,) newtons per
-    clutch, ``inf`` for a locked one (``sim.slip``).
+    clutch, ``inf`` for a locked one (``sim.slip``);  clutch_buckle : the strips take no
+    compression (the paper's model: False).
     """
     X = np.ascontiguousarray(garment_vertices, dtype=np.float64)
     F = np.ascontiguousarray(garment_faces, dtype=np.int64)
@@ -193,6 +199,7 @@ def build_model(
     n_all = voff[-1]
     relaxed = np.zeros(len(elems.area), bool)
     relaxed[:m] = True
+    relaxed[m:] = bool(clutch_buckle)
     varea = np.zeros(n_all)
     np.add.at(varea, elems.tri.ravel(), np.repeat(elems.area / 3.0, 3))
     e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
@@ -209,7 +216,8 @@ def build_model(
                     vertex_offsets=np.array(voff), face_offsets=np.array(foff), elements=elems,
                     relaxed=relaxed, vertex_area=varea, mean_edge=mean_edge, static_springs=static,
                     pattern=pattern, penalties=penalties, holding_force=hold,
-                    slip_coef=np.concatenate(coef) if coef else np.zeros((0, 3)), strip_width=np.array(width))
+                    slip_coef=np.concatenate(coef) if coef else np.zeros((0, 3)), strip_width=np.array(width),
+                    clutch_buckle=bool(clutch_buckle))
 
 
 @dataclass(frozen=True)

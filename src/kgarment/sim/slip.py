@@ -104,7 +104,8 @@ class SliderSet:
 
     element : (q,) long element ids;  tri : (q, 3) long vertex ids;  coef : (q, 3) axial
     shape coefficients (1/m);  area : (q,) rest areas (m^2);  k : (q,) slider stiffness
-    (N/m);  cap : (q,) holding force per unit width (N/m).
+    (N/m);  cap : (q,) holding force per unit width (N/m);  pull_only : the sliders carry
+    no compression (a buckling strip, ``[clutches] buckle``).
     """
 
     element: torch.Tensor
@@ -113,19 +114,24 @@ class SliderSet:
     area: torch.Tensor
     k: torch.Tensor
     cap: torch.Tensor
+    pull_only: bool = False
 
 
 SMOOTH = 0.5      # the slider's stiffness ramps from k down over e_h (1 -+ SMOOTH)
 HARDENING = 0.5   # beyond, the force rises by this share of the holding force per unit strain
 
 
-def slider_law(e: torch.Tensor, k: torch.Tensor, cap: torch.Tensor):
+def slider_law(e: torch.Tensor, k: torch.Tensor, cap: torch.Tensor, pull_only: bool = False):
     """``psi`` (J/m^2), ``psi'`` (N/m) and ``psi''`` (N/m) at axial strains e (q,).
 
     Symmetric (friction holds both ways): ``k e^2 / 2`` for ``|e| <= e1 = (1 - SMOOTH) e_h``,
     then a stiffness ramping linearly from k to 0 at ``|e| = e2 = (1 + SMOOTH) e_h``
     (``e_h = cap / k``), where the force ``|psi'|`` reaches ``cap`` exactly, and beyond
-    ``cap (1 + HARDENING (|e| - e2))``.  C1, convex."""
+    ``cap (1 + HARDENING (|e| - e2))``.  C1, convex.  ``pull_only``: 0 for ``e < 0`` (a
+    strip that buckles when shortened; still C1 and convex, its second derivative jumps at
+    0 as the cloth's wrinkling relaxation's does)."""
+    if pull_only:
+        e = e.clamp(min=0.0)
     a = e.abs()
     e_h = cap / k
     e1, e2 = (1.0 - SMOOTH) * e_h, (1.0 + SMOOTH) * e_h
@@ -138,6 +144,8 @@ def slider_law(e: torch.Tensor, k: torch.Tensor, cap: torch.Tensor):
            + cap * beyond + 0.5 * h * beyond * beyond)
     dpsi = torch.sign(e) * (k * (ec + ramp - ramp * ramp / (2 * w)) + h * beyond)
     ddpsi = k * (1.0 - ramp / w) + h * (beyond > 0)
+    if pull_only:
+        ddpsi = ddpsi * (e > 0)
     return psi, dpsi, ddpsi
 
 
@@ -149,7 +157,7 @@ def slider_energy(x: torch.Tensor, s: SliderSet, order: int = 0, project: bool =
     the Hessian PSD; without, it is exact."""
     v = torch.einsum("qbi,qb->qi", x[s.tri], s.coef)  # F a, (q, 3)
     lam = torch.linalg.vector_norm(v, dim=1)
-    psi, dpsi, ddpsi = slider_law(lam - 1.0, s.k, s.cap)
+    psi, dpsi, ddpsi = slider_law(lam - 1.0, s.k, s.cap, s.pull_only)
     energy = s.area * psi
     if order == 0:
         return energy, None, None
