@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from test_sim_slip import _deformed, _sliders
+from test_sim_slip import _deformed, _sliders, check_slider_derivatives
 
 from kgarment.errors import KgarmentError
 from kgarment.sim import SimState, build_model
@@ -43,18 +43,7 @@ def test_pulling_sliders_derivatives_match_finite_differences():
     x = torch.as_tensor(_deformed(rest, s, rng, sign * e_h * rng.uniform(0.1, 3.0, len(e_h))))
     e, g, H = slider_energy(x, s, order=2, project=False)
     assert bool((e[sign < 0] == 0).all()) and bool((e[sign > 0] > 0).all())
-    h = 1e-7
-    for i in rng.choice(len(rest), 8, replace=False):
-        for c in range(3):
-            dx = torch.zeros_like(x)
-            dx[i, c] = h
-            ep, gp, _ = slider_energy(x + dx, s, order=1)
-            em, gm, _ = slider_energy(x - dx, s, order=1)
-            el, b = divmod(int(i), 3)
-            assert float(g[el, b, c]) == pytest.approx(float((ep - em)[el]) / (2 * h), rel=1e-5,
-                                                      abs=1e-9 * float(s.k.max() * s.area.max()) / 0.01)
-            fdh = ((gp - gm)[el] / (2 * h)).reshape(9)
-            assert np.allclose(H[el, :, 3 * b + c].numpy(), fdh.numpy(), rtol=1e-4, atol=1e-6 * float(H.abs().max()))
+    check_slider_derivatives(x, s, g, H, rng.choice(len(rest), 8, replace=False))
 
 
 def _clutch_energy(strain: float, buckle: bool) -> tuple[float, float]:

@@ -56,6 +56,22 @@ def _deformed(rest, s, rng, strains):
     return x @ q.T
 
 
+def check_slider_derivatives(x, s, g, H, vertices, h=1e-7):
+    """The sliders' gradient g and exact Hessian H at x against central differences of the
+    energy and of the gradient, moving each of ``vertices`` along each axis."""
+    for i in vertices:
+        for c in range(3):
+            dx = torch.zeros_like(x)
+            dx[i, c] = h
+            ep, gp, _ = slider_energy(x + dx, s, order=1)
+            em, gm, _ = slider_energy(x - dx, s, order=1)
+            el, b = divmod(int(i), 3)
+            fd = float((ep - em)[el]) / (2 * h)
+            assert float(g[el, b, c]) == pytest.approx(fd, rel=1e-5, abs=1e-9 * float(s.k.max() * s.area.max()) / 0.01)
+            fdh = ((gp - gm)[el] / (2 * h)).reshape(9)
+            assert np.allclose(H[el, :, 3 * b + c].numpy(), fdh.numpy(), rtol=1e-4, atol=1e-6 * float(H.abs().max()))
+
+
 def test_rest_axial_vector_has_unit_length():
     rng = np.random.default_rng(0)
     rest, s = _sliders(rng)
@@ -97,18 +113,7 @@ def test_slider_gradient_and_hessian_match_finite_differences(regime):
     x = torch.as_tensor(_deformed(rest, s, rng, strains) + rng.normal(size=rest.shape) * 1e-5)
     e, g, H = slider_energy(x, s, order=2, project=False)  # the exact Hessian
     assert (e.numpy() > 0).all()
-    h = 1e-7
-    for i in rng.choice(len(rest), 6, replace=False):
-        for c in range(3):
-            dx = torch.zeros_like(x)
-            dx[i, c] = h
-            ep, gp, _ = slider_energy(x + dx, s, order=1)
-            em, gm, _ = slider_energy(x - dx, s, order=1)
-            el, b = divmod(int(i), 3)
-            fd = float((ep - em)[el]) / (2 * h)
-            assert float(g[el, b, c]) == pytest.approx(fd, rel=1e-5, abs=1e-9 * float(s.k.max() * s.area.max()) / 0.01)
-            fdh = ((gp - gm)[el] / (2 * h)).reshape(9)
-            assert np.allclose(H[el, :, 3 * b + c].numpy(), fdh.numpy(), rtol=1e-4, atol=1e-6 * float(H.abs().max()))
+    check_slider_derivatives(x, s, g, H, rng.choice(len(rest), 6, replace=False))
     _, _, Hp = slider_energy(x, s, order=2)  # projected: PSD everywhere, exact in tension
     eig = torch.linalg.eigvalsh(Hp)
     assert float(eig.min()) >= -1e-9 * float(eig.max())
