@@ -1,8 +1,9 @@
 """Bad input, as a hostile or clumsy user gives it: every case exits with status 2 and one
 line naming the field or file and what is allowed, no traceback, nothing touched.
 
-The table grows with every new field (issue 20).  Cases run in-process (``main``); the
-ones that fail only once the body is built use the session's cached Anny body.
+The table grows with every new field (issue 20).  Cases run in-process
+(``tests/cli_runner.py``, the log on stderr as a user sees it); the ones that fail only
+once the body is built use the session's cached Anny body.
 """
 
 from __future__ import annotations
@@ -10,22 +11,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-
-from kgarment.cli import main
+from cli_runner import run_cli
 
 SLEEVE = '[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n[motions]\nuse = ["arm_flexion.right"]\n'
 CLUTCH = ('[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n[motions]\nuse = ["arm_flexion.right"]\n'
           '[[clutches.clutch]]\nname = "c"\nstart = "elbow_outer.R"\n')
 ROT = '[motions]\nuse = ["w"]\n[motions.define.w]\nrotations = [{ bone = "upperarm01.R", %s }]\n'
-
-
-def run_cli(argv, capsys) -> tuple[int, str, str]:
-    try:
-        rc = main(list(argv))
-    except SystemExit as e:  # argparse
-        rc = e.code
-    out, err = capsys.readouterr()
-    return rc, out, err
 
 
 def assert_one_line(rc, err, message):
@@ -90,10 +81,10 @@ PROBLEMS = [
 
 
 @pytest.mark.parametrize("toml, message", PROBLEMS, ids=[m[:40] for _, m in PROBLEMS])
-def test_bad_problem_field(toml, message, tmp_path, monkeypatch, capsys):
+def test_bad_problem_field(toml, message, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "p.toml").write_text(toml)
-    rc, _, err = run_cli(["render", "p.toml", "--out", "pics"], capsys)
+    rc, _, err = run_cli(["render", "p.toml", "--out", "pics"])
     assert_one_line(rc, err, message)
     assert not (tmp_path / "pics").exists()
 
@@ -118,12 +109,12 @@ FLAGS = [
 
 
 @pytest.mark.parametrize("argv, message", FLAGS, ids=[" ".join(a) for a, _ in FLAGS])
-def test_bad_flag(argv, message, capsys):
-    rc, _, err = run_cli(argv, capsys)
+def test_bad_flag(argv, message):
+    rc, _, err = run_cli(argv)
     assert_one_line(rc, err, message)
 
 
-def test_outputs_checked_before_the_work(tmp_path, monkeypatch, capsys):
+def test_outputs_checked_before_the_work(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "afile").write_text("x")
     (tmp_path / "adir").mkdir()
@@ -139,7 +130,7 @@ def test_outputs_checked_before_the_work(tmp_path, monkeypatch, capsys):
         (["design", "--out", "afile"], "afile is a file, not a folder"),
     ]
     for argv, message in cases:
-        rc, _, err = run_cli(argv, capsys)
+        rc, _, err = run_cli(argv)
         assert_one_line(rc, err, message)
     assert (tmp_path / "afile").read_text() == "x" and not any((tmp_path / "adir").iterdir())
 
@@ -150,12 +141,12 @@ def _foreign_folder(path):
     (path / "sub" / "thesis.txt").write_text("chapter 1")
 
 
-def test_force_never_deletes_a_folder_kgarment_did_not_write(tmp_path, monkeypatch, capsys):
+def test_force_never_deletes_a_folder_kgarment_did_not_write(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     _foreign_folder(tmp_path / "mine")
     for argv in (["design", "--out", "mine", "--force"], ["demo", "--out", "mine", "--force"],
                  ["design", "--out", "mine"]):
-        rc, _, err = run_cli(argv, capsys)
+        rc, _, err = run_cli(argv)
         assert_one_line(rc, err, "mine exists and holds files kgarment did not write")
     assert (tmp_path / "mine" / "notes.txt").read_text() == "my notes"
     assert (tmp_path / "mine" / "sub" / "thesis.txt").read_text() == "chapter 1"
@@ -169,17 +160,17 @@ def _old_run(path):
     return {p.name: p.read_bytes() for p in path.iterdir()}
 
 
-def test_force_keeps_the_old_run_when_the_new_problem_fails(tmp_path, monkeypatch, capsys, anny_body):
+def test_force_keeps_the_old_run_when_the_new_problem_fails(tmp_path, monkeypatch, anny_body):
     monkeypatch.chdir(tmp_path)
     before = _old_run(tmp_path / "run")
     np.save(tmp_path / "mask.npy", np.array([3]))  # one face: not a garment
     (tmp_path / "p.toml").write_text('[garment]\nmask = "mask.npy"\nsubdivision = 0\n')
-    rc, _, err = run_cli(["design", "p.toml", "--out", "run", "--force"], capsys)
+    rc, _, err = run_cli(["design", "p.toml", "--out", "run", "--force"])
     assert_one_line(rc, err, "selects 1 faces of the body; a garment needs at least 20")
     assert {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mask.npy", "p.toml", "run"]  # no temporary left
     (tmp_path / "p.toml").write_text('[motions]\nuse = ["moonwalk"]\n')  # fails while parsing
-    rc, _, err = run_cli(["design", "p.toml", "--out", "run", "--force"], capsys)
+    rc, _, err = run_cli(["design", "p.toml", "--out", "run", "--force"])
     assert_one_line(rc, err, "unknown motion 'moonwalk'")
     assert {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()} == before
 
@@ -207,7 +198,7 @@ def test_replace_folder_swaps_only_when_filled(tmp_path):
 
 @pytest.mark.parametrize("content", [b"", b"PK\x03\x04 truncated", np.random.default_rng(0).bytes(300)],
                          ids=["empty", "truncated", "random"])
-def test_damaged_run_files(content, tmp_path, monkeypatch, capsys):
+def test_damaged_run_files(content, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     run = tmp_path / "run"
     run.mkdir()
@@ -215,21 +206,21 @@ def test_damaged_run_files(content, tmp_path, monkeypatch, capsys):
     (run / "problem.txt").write_text("")
     (run / "checkpoint.npz").write_bytes(content)
     (run / "designs.npz").write_bytes(content)
-    rc, _, err = run_cli(["design", "--resume", "run"], capsys)
+    rc, _, err = run_cli(["design", "--resume", "run"])
     assert_one_line(rc, err, "checkpoint.npz is damaged or not a kgarment checkpoint")
-    rc, _, err = run_cli(["evaluate", "run"], capsys)
+    rc, _, err = run_cli(["evaluate", "run"])
     assert_one_line(rc, err, "designs.npz is damaged or not a kgarment design history")
-    rc, _, err = run_cli(["fabricate", "run"], capsys)
+    rc, _, err = run_cli(["fabricate", "run"])
     assert_one_line(rc, err, "is damaged or not a kgarment")
     assert (run / "checkpoint.npz").read_bytes() == content
 
 
-def test_crashed_run_says_what_to_do(tmp_path, monkeypatch, capsys):
+def test_crashed_run_says_what_to_do(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "run").mkdir()
     for name in ("problem.toml", "problem.txt"):
         (tmp_path / "run" / name).write_text("")
-    rc, _, err = run_cli(["design", "--out", "run"], capsys)
+    rc, _, err = run_cli(["design", "--out", "run"])
     assert_one_line(rc, err, "stopped before its first checkpoint, so there is nothing to resume: use --force")
 
 
@@ -243,17 +234,17 @@ BAD_MASKS = [
 
 @pytest.mark.parametrize("mask, message", BAD_MASKS + [(None, "holds no array")],
                          ids=["float", "one face", "empty", "strings", "empty npz"])
-def test_bad_garment_mask(mask, message, tmp_path, monkeypatch, capsys, anny_body):
+def test_bad_garment_mask(mask, message, tmp_path, monkeypatch, anny_body):
     monkeypatch.chdir(tmp_path)
     name = "mask.npz" if mask is None else "mask.npy"
     np.savez(tmp_path / name) if mask is None else np.save(tmp_path / name, mask)
     (tmp_path / "p.toml").write_text(f'[garment]\nmask = "{name}"\nsubdivision = 0\n[motions]\nuse = ["arms_raise"]\n')
-    rc, _, err = run_cli(["render", "p.toml", "--out", "pics"], capsys)
+    rc, _, err = run_cli(["render", "p.toml", "--out", "pics"])
     assert_one_line(rc, err, message)
 
 
 @pytest.mark.parametrize("which", ["rest", "motion"])
-def test_mesh_with_nan_vertices(which, tmp_path, monkeypatch, capsys):
+def test_mesh_with_nan_vertices(which, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     s = trimesh.creation.icosphere(2)
     v = s.vertices.copy()
@@ -262,7 +253,7 @@ def test_mesh_with_nan_vertices(which, tmp_path, monkeypatch, capsys):
     trimesh.Trimesh(bad if which == "rest" else v, s.faces, process=False).export(tmp_path / "rest.ply")
     trimesh.Trimesh(bad if which == "motion" else v * 1.1, s.faces, process=False).export(tmp_path / "m.ply")
     (tmp_path / "p.toml").write_text('[body]\nmodel = "meshes"\nrest = "rest.ply"\nmotions = { m = "m.ply" }\n')
-    rc, _, err = run_cli(["render", "p.toml", "--out", "pics"], capsys)
+    rc, _, err = run_cli(["render", "p.toml", "--out", "pics"])
     assert_one_line(rc, err, "has 1 vertices with NaN or infinite coordinates (the first: vertex 7)")
 
 
@@ -323,11 +314,11 @@ UNKNOWN_CLUTCH = [
 
 
 @pytest.mark.parametrize("toml, message", UNKNOWN_CLUTCH, ids=["holding_force", "activation"])
-def test_an_unknown_clutch_name(toml, message, tmp_path, monkeypatch, capsys, anny_body):
+def test_an_unknown_clutch_name(toml, message, tmp_path, monkeypatch, anny_body):
     """One line naming the field and the clutches there are, and no run folder left behind."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "p.toml").write_text('[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n'
                                      '[motions]\nuse = ["arm_flexion.right"]\n[clutches]\nlayout = "sleeve"\n' + toml)
-    rc, _, err = run_cli(["design", "p.toml", "--out", "run"], capsys)
+    rc, _, err = run_cli(["design", "p.toml", "--out", "run"])
     assert_one_line(rc, err, message)
     assert not (tmp_path / "run").exists()

@@ -19,14 +19,10 @@ max_iterations = {iterations}
 """
 
 
-def _cli(args, cwd):
-    return run_cli(args, cwd)
-
-
 @pytest.mark.parametrize("objective", ["active", "passive", "compliance"])
 def test_tiny_design_run(tmp_path, anny_body, objective):
     (tmp_path / "p.toml").write_text(SLEEVE.format(objective=objective, iterations=3))
-    rc, out, err = _cli(["design", "p.toml", "--out", "run"], tmp_path)
+    rc, out, err = run_cli(["design", "p.toml", "--out", "run"], tmp_path)
     assert rc == 0, err
     run = tmp_path / "run"
     for f in ("problem.toml", "problem.txt", "checkpoint.npz", "designs.npz", "metrics.csv", "metrics.json",
@@ -56,13 +52,13 @@ def test_tiny_design_run(tmp_path, anny_body, objective):
     assert hist.shape[0] == 3 and hist[0].all()
     assert (run / "designs.npz").stat().st_size < 10_000
     # an existing run is never overwritten without --force
-    rc, _, err = _cli(["design", "p.toml", "--out", "run"], tmp_path)
+    rc, _, err = run_cli(["design", "p.toml", "--out", "run"], tmp_path)
     assert rc == 2 and "--resume" in err and "--force" in err
 
 
 def test_resume_from_the_command_line_and_evaluate(tmp_path, anny_body):
     (tmp_path / "p.toml").write_text(SLEEVE.format(objective="active", iterations=4))
-    rc, _, err = _cli(["design", "p.toml", "--out", "whole"], tmp_path)
+    rc, _, err = run_cli(["design", "p.toml", "--out", "whole"], tmp_path)
     assert rc == 0, err
     # Ctrl-C in the middle of a run leaves a resumable run folder
     import signal
@@ -84,12 +80,12 @@ def test_resume_from_the_command_line_and_evaluate(tmp_path, anny_body):
         assert "kgarment design --resume" in out
     else:  # the run finished before the signal arrived; resuming a finished run is a no-op
         assert proc.returncode == 0, err
-    rc, out, err = _cli(["design", "--resume", "part", "--no-evaluation"], tmp_path)
+    rc, out, err = run_cli(["design", "--resume", "part", "--no-evaluation"], tmp_path)
     assert rc == 0, err
     from kgarment.design.run import load_design_history
 
     np.testing.assert_array_equal(load_design_history(tmp_path / "whole"), load_design_history(tmp_path / "part"))
-    rc, out, err = _cli(["evaluate", "whole@1", "--json", "e.json"], tmp_path)
+    rc, out, err = run_cli(["evaluate", "whole@1", "--json", "e.json"], tmp_path)
     assert rc == 0, err
     doc = json.loads((tmp_path / "e.json").read_text())
     rows = doc["rows"]
@@ -100,15 +96,15 @@ def test_resume_from_the_command_line_and_evaluate(tmp_path, anny_body):
     (g,) = doc["garment"]
     assert g["energy_on_J"] > 0 and g["energy_off_J"] > 0
     # one truth per design: evaluating the final design gives the run's final numbers
-    rc, _, err = _cli(["evaluate", "whole", "--json", "f.json"], tmp_path)
+    rc, _, err = run_cli(["evaluate", "whole", "--json", "f.json"], tmp_path)
     assert rc == 0, err
     again = json.loads((tmp_path / "f.json").read_text())
     final = json.loads((tmp_path / "whole" / "final" / "evaluation.json").read_text())
     assert again["rows"] == final["rows"] and again["clutches"] == final["clutches"]
-    rc, _, err = _cli(["evaluate", "nowhere"], tmp_path)
+    rc, _, err = run_cli(["evaluate", "nowhere"], tmp_path)
     assert rc == 2 and "not a run folder" in err
     # the control table of the same design: its all-ON and all-OFF energies are the evaluation's
-    rc, out, err = _cli(["plan", "whole@1"], tmp_path)
+    rc, out, err = run_cli(["plan", "whole@1"], tmp_path)
     assert rc == 0, err
     plan = json.loads((tmp_path / "whole" / "plan@1.json").read_text())
     rec = plan["motions"]["arm_flexion.right"]
@@ -117,12 +113,12 @@ def test_resume_from_the_command_line_and_evaluate(tmp_path, anny_body):
     assert rec["energy_off_J"] == pytest.approx(g["energy_off_J"], rel=1e-9)
     assert rec["best"]["resistance_J"] == pytest.approx(g["energy_on_J"] - g["energy_off_J"], rel=1e-9)
     assert "# Control plan" in (tmp_path / "whole" / "plan@1.md").read_text()
-    rc, _, err = _cli(["plan", "whole@1"], tmp_path)
+    rc, _, err = run_cli(["plan", "whole@1"], tmp_path)
     assert rc == 2 and "exists" in err  # an existing plan is not replaced without --force
     # with the motion from rest competing: the same all-ON / OFF energies as evaluate --path
-    rc, out, err = _cli(["plan", "whole@1", "--path", "2", "--out", "pathplan"], tmp_path)
+    rc, out, err = run_cli(["plan", "whole@1", "--path", "2", "--out", "pathplan"], tmp_path)
     assert rc == 0, err
-    rc, _, err = _cli(["evaluate", "whole@1", "--path", "2", "--json", "p.json"], tmp_path)
+    rc, _, err = run_cli(["evaluate", "whole@1", "--path", "2", "--json", "p.json"], tmp_path)
     assert rc == 0, err
     (gp,) = json.loads((tmp_path / "p.json").read_text())["garment"]
     rec = json.loads((tmp_path / "pathplan" / "plan@1.json").read_text())["motions"]["arm_flexion.right"]

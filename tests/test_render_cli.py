@@ -85,10 +85,6 @@ def test_mesh_sequence_mismatch_and_missing(tmp_path):
         load_mesh_sequence(tmp_path / "nope.obj", {})
 
 
-def _cli(args, tmp_path):
-    return run_cli(args, tmp_path)
-
-
 @pytest.mark.parametrize("cmd", [[], ["motions"], ["garments"], ["render"], ["demo"], ["clutches"], ["simulate"], ["design"], ["evaluate"], ["examples"], ["fabricate"], ["studio"]])
 def test_help_everywhere(cmd, capsys):
     with pytest.raises(SystemExit) as e:
@@ -115,21 +111,21 @@ def test_version(capsys):
 ])
 def test_bad_problem_files_exit_2_with_one_line(tmp_path, toml, message):
     (tmp_path / "p.toml").write_text(toml)
-    rc, out, err = _cli(["render", "p.toml"], tmp_path)
+    rc, out, err = run_cli(["render", "p.toml"], tmp_path)
     assert rc == 2
     assert err.count("\n") == 1 and "Traceback" not in err
     assert message in err
 
 
 def test_missing_problem_file(tmp_path):
-    rc, _, err = _cli(["render", "nothere.toml"], tmp_path)
+    rc, _, err = run_cli(["render", "nothere.toml"], tmp_path)
     assert rc == 2 and "problem file not found" in err
 
 
 def test_unknown_bone_in_user_motion(tmp_path, anny_body):
     (tmp_path / "p.toml").write_text(
         '[motions]\nuse = ["w"]\n[motions.define.w]\nrotations = [{ bone = "elbow", axis = "x", degrees = 3 }]\n')
-    rc, _, err = _cli(["render", "p.toml"], tmp_path)
+    rc, _, err = run_cli(["render", "p.toml"], tmp_path)
     assert rc == 2 and "unknown bone 'elbow'; valid:" in err
 
 
@@ -138,14 +134,14 @@ def test_render_command_with_user_motion(tmp_path, anny_body):
         '[motions]\nuse = ["wave"]\n[motions.define.wave]\n'
         'rotations = [{ bone = "upperarm01.L", axis = "-y", degrees = 60 }]\n'
         '[garment]\ntemplate = "arm_sleeve.left"\nsubdivision = 0\n')
-    rc, out, err = _cli(["render", "p.toml", "--views", "front", "--out", "pics"], tmp_path)
+    rc, out, err = run_cli(["render", "p.toml", "--views", "front", "--out", "pics"], tmp_path)
     assert rc == 0, err
     assert (tmp_path / "pics" / "arm_sleeve.left_wave.png").is_file()
     assert "motions: wave" in out
 
 
 def test_motions_lists_the_paper_motions(tmp_path):
-    rc, out, _ = _cli(["motions"], tmp_path)
+    rc, out, _ = run_cli(["motions"], tmp_path)
     assert rc == 0
     for m in ("arms_forward", "arms_raise", "arm_flexion", "arm_extension", "bend_forward", "knee_flexion"):
         assert m in out
@@ -157,18 +153,18 @@ def test_clutches_show_and_suggest(tmp_path, anny_body):
         '[motions]\nuse = ["arm_flexion"]\n'
         '[clutches]\nlayout = "arm_flexion"\n'
         '[[clutches.clutch]]\nname = "extra"\nstart = "forearm_inner.R"\ntowards = "elbow_inner.R"\nlength = 0.03\n')
-    rc, out, err = _cli(["clutches", "show", "p.toml", "--out", "c"], tmp_path)
+    rc, out, err = run_cli(["clutches", "show", "p.toml", "--out", "c"], tmp_path)
     assert rc == 0, err
     assert "elbow_outer.R" in out and "extra" in out
     assert (tmp_path / "c" / "clutches.png").is_file()
-    rc, out, err = _cli(["clutches", "suggest", "p.toml", "--count", "1", "--length", "0.05", "--out", "c"], tmp_path)
+    rc, out, err = run_cli(["clutches", "suggest", "p.toml", "--count", "1", "--length", "0.05", "--out", "c"], tmp_path)
     assert rc == 0, err
     from kgarment.clutch import load_clutches
 
     assert [s.name for s in load_clutches(tmp_path / "c" / "suggested.toml")] == ["suggested0"]
     # elbow flexion stretches the sleeve over the elbow, where the clutch goes: it is felt
     assert "arm_flexion: can be felt through suggested0" in out
-    rc, _, err = _cli(["clutches", "show", "p.toml", "--out", "c"], tmp_path)
+    rc, _, err = run_cli(["clutches", "show", "p.toml", "--out", "c"], tmp_path)
     assert rc == 2 and "use --force" in err
 
 
@@ -181,5 +177,5 @@ def test_clutches_show_and_suggest(tmp_path, anny_body):
 def test_bad_clutches_exit_2(tmp_path, anny_body, clutch, message):
     (tmp_path / "p.toml").write_text('[garment]\ntemplate = "arm_sleeve.right"\nsubdivision = 0\n'
                                      '[motions]\nuse = ["arm_flexion"]\n[[clutches.clutch]]\n' + clutch)
-    rc, _, err = _cli(["clutches", "show", "p.toml", "--out", "c"], tmp_path)
+    rc, _, err = run_cli(["clutches", "show", "p.toml", "--out", "c"], tmp_path)
     assert rc == 2 and "Traceback" not in err and message in err and "'x'" in err
