@@ -129,7 +129,7 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
     assert cross["rho_on"]["arm_extension.right"]["all"] == pytest.approx(
         doc["experiments"]["sleeve_two_motions"]["evaluations"]["ours"]["rho"]["arm_extension.right"]["on"])
     # the machine-readable summary: per experiment ours and manual, and the targets
-    summary = json.loads((rep / "results.json").read_text())
+    summary = json.loads((rep / "results.json").read_text(), parse_constant=_not_json)  # strict: no NaN
     assert summary["resolution"] == "tiny" and set(summary["experiments"]) == set(exps.split(","))
     ext = summary["experiments"]["arm_extension"]["ours"]
     assert set(ext) == {"rho", "parts", "clutch_ends_supported", "clutch_ends", "clutches"}
@@ -188,8 +188,11 @@ def test_a_reproduction_folder_keeps_only_its_own_resolution_and_preset(tmp_path
     doc = {"resolution": {"name": "tiny"}, "experiments": {"arm_extension": entry, "arm_flexion": dict(entry)}}
     (tmp_path / "data.json").write_text(json.dumps(doc))
     assert previous_results(tmp_path, tiny, {"preset": None}) == doc["experiments"]
-    with pytest.raises(KgarmentError, match="preset / clutch model paper / locked, not reference / locked"):
+    with pytest.raises(KgarmentError, match="preset paper, clutch model locked, not preset reference, clutch model locked;"):
         previous_results(tmp_path, tiny, {"preset": "reference"})
+    # buckling clutches are another reproduction too (their designs and energies differ)
+    with pytest.raises(KgarmentError, match="clutch model locked, not preset paper, clutch model locked, buckling clutch strips;"):
+        previous_results(tmp_path, tiny, {"preset": None, "buckle": True})
     with pytest.raises(KgarmentError, match="holds a tiny-resolution reproduction, not preview"):
         previous_results(tmp_path, RESOLUTIONS["preview"], None)
     # a committed report (entries without run folders) is continued, not redone, unless named
@@ -201,6 +204,26 @@ def test_a_reproduction_folder_keeps_only_its_own_resolution_and_preset(tmp_path
     (tmp_path / "data.json").write_text("{}")
     with pytest.raises(KgarmentError, match="not a reproduction's data"):
         previous_results(tmp_path, tiny, None)
+
+
+def _not_json(constant: str):
+    raise ValueError(f"{constant} is not JSON")
+
+
+def test_json_for_other_programs_is_strict():
+    """Files other programs read (results.json, evaluate --json, plan.json) hold RFC 8259
+    JSON: an undefined value (a clutch's 'needed' outside its set: NaN) is null, which
+    JSON.parse and jq read, where Python's default would write NaN."""
+    from kgarment.io import json_text
+
+    doc = {"needed": float("nan"), "rows": [1.5, float("inf"), (-float("inf"), np.float64("nan"))],
+           "name": "elbow", "n": 3, "ok": True, "none": None}
+    text = json_text(doc)
+    back = json.loads(text, parse_constant=_not_json)
+    assert back == {"needed": None, "rows": [1.5, None, [None, None]], "name": "elbow", "n": 3, "ok": True,
+                    "none": None}
+    with pytest.raises(ValueError, match="NaN is not JSON"):
+        json.loads(json.dumps(doc), parse_constant=_not_json)  # what the files held before
 
 
 def test_an_experiment_run_again_keeps_what_it_took_before():

@@ -88,3 +88,22 @@ def test_buckle_in_the_problem_file():
     assert "clutches" not in problem_to_dict(parse_problem({}))  # the paper's model: nothing written
     with pytest.raises(KgarmentError, match=r"\[clutches\] buckle = 'yes'; allowed: true, false"):
         parse_problem({"clutches": {"buckle": "yes"}})
+
+
+def test_buckle_on_the_command_line():
+    """``--buckle`` / ``--no-buckle`` override the file's [clutches] buckle and keep the rest
+    of its hardware (clutch model, holding force), so any run can be judged both ways."""
+    import argparse
+
+    from kgarment.cli.common import add_clutch_model, overrides
+    from kgarment.problem import override, parse_problem
+
+    sp = argparse.ArgumentParser()
+    add_clutch_model(sp)
+    file = parse_problem({"clutches": {"model": "slip", "holding_force": 40.0}})
+    assert sp.parse_args([]).buckle is None and override(file, buckle=None).clutch_spec() == file.clutch_spec()
+    on = override(file, **{k: v for k, v in overrides(sp.parse_args(["--buckle"])).items() if k == "buckle"})
+    hw = on.clutch_spec().hardware
+    assert hw.buckle and hw.model == "slip" and hw.holding_force == (("*", 40.0),)
+    off = override(on, buckle=sp.parse_args(["--no-buckle"]).buckle)
+    assert not off.clutch_spec().hardware.buckle and off.clutch_spec().hardware.holding_force == (("*", 40.0),)

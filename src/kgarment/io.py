@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import os
 import shutil
 import tempfile
@@ -54,6 +55,25 @@ def atomic_write_bytes(path, data: bytes) -> Path:
 def atomic_write_text(path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically."""
     return atomic_write_bytes(path, text.encode())
+
+
+def finite_json(obj):
+    """``obj`` (nested dicts, lists, tuples, numbers, strings) with every float that is not
+    finite (NaN, +-inf: an undefined share, a missing value) replaced by None."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_json(v) for v in obj]
+    return obj
+
+
+def json_text(obj, indent: int | None = 1) -> str:
+    """Strict JSON (RFC 8259) of ``obj`` for the files users and other programs read: values
+    that are not finite written as null (Python's ``json`` would write NaN, which JSON.parse,
+    jq and most readers refuse)."""
+    return json.dumps(finite_json(obj), indent=indent, allow_nan=False)
 
 
 def atomic_save_npz(path, **arrays) -> Path:

@@ -93,6 +93,9 @@ def add_clutch_model(sp) -> None:
     sp.add_argument("--holding-force", type=number(*C.CLUTCH_RANGES["holding_force"]), metavar="N",
                     help="newtons every clutch holds before it slides (implies --clutch-model slip; default: "
                     f"the problem's, else {C.HOLDING_STRESS / 1e4:g} N/cm^2 of strip)")
+    sp.add_argument("--buckle", action=argparse.BooleanOptionalAction, default=None,
+                    help="ON clutch strips buckle: they take no compression (--no-buckle: they resist it as stiffly "
+                    "as tension, the paper's model; default: the problem's [clutches] buckle)")
 
 
 def overrides(args) -> dict:
@@ -102,7 +105,7 @@ def overrides(args) -> dict:
             "method": getattr(args, "solver", None), "tol": getattr(args, "tol", None),
             "max_iterations": getattr(args, "max_iterations", None),
             "clutch_model": getattr(args, "clutch_model", None), "holding_force": getattr(args, "holding_force", None),
-            "refine": getattr(args, "refine", False)}
+            "buckle": getattr(args, "buckle", None), "refine": getattr(args, "refine", False)}
 
 
 def load(args):

@@ -134,13 +134,12 @@ def cmd_sizes(args) -> int:
 
 
 def cmd_evaluate(args) -> int:
-    import json
 
     from kgarment.design import Evaluator, load_design, parse_design_source
     from kgarment.design.driver import run_inputs
     from kgarment.design.loads import load_chart
     from kgarment.design.run import iteration_of
-    from kgarment.io import atomic_write_text, check_output_file
+    from kgarment.io import atomic_write_text, check_output_file, json_text
     from kgarment.problem import load_problem, override
 
     for flag, path in (("--json", args.json), ("--plot", args.plot)):
@@ -148,7 +147,7 @@ def cmd_evaluate(args) -> int:
             check_output_file(path, flag)  # before the evaluation, not after it
     src = parse_design_source(args.design, run_required=True)
     p = override(load_problem(src.run / "problem.toml"), motions=args.motion, clutch_model=args.clutch_model,
-                 holding_force=args.holding_force)
+                 holding_force=args.holding_force, buckle=args.buckle)
     if args.path and p.body.phenotypes:
         raise KgarmentError("--path: the force over the motion is solved on one body; for a multi-body design "
                             "([body] phenotypes) leave --path out (each wearer is evaluated at the target pose)")
@@ -157,8 +156,10 @@ def cmd_evaluate(args) -> int:
             raise KgarmentError("--phenotype needs a run on the Anny body (body model 'anny')")
         phenotypes = [parse_phenotype(text, p.body.phenotype) for text in args.phenotype]
     hw = p.clutch_spec().hardware
-    if args.clutch_model or args.holding_force:
-        print("clutches: " + ("locked (never slip)" if hw.model == "locked" else "slip at their holding force"))
+    other_hw = args.clutch_model or args.holding_force or args.buckle is not None
+    if other_hw:
+        print("clutches: " + ("locked (never slip)" if hw.model == "locked" else "slip at their holding force")
+              + ("; the strips buckle (no compression)" if hw.buckle else "; the strips resist compression"))
     k = iteration_of(src)
     p, body, garment, strips = run_inputs(src.run, p)
     ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device)
@@ -172,9 +173,9 @@ def cmd_evaluate(args) -> int:
         path = path_forces(ev, design, p, frames=args.path, report=lambda line: print(f"  {line}", flush=True))
         print(path.table())
         # another clutch model than the run's gets files of its own (the run's path stays)
-        stem = src.run / (f"path-{k}" + (f"-{hw.model}" if args.clutch_model or args.holding_force else ""))
-        atomic_write_text(stem.with_suffix(".json"), json.dumps({"run": str(src.run), "iteration": k,
-                                                                  **path.to_json()}, indent=1))
+        stem = src.run / (f"path-{k}" + (f"-{hw.model}" + ("-buckle" if hw.buckle else "") if other_hw else ""))
+        atomic_write_text(stem.with_suffix(".json"), json_text({"run": str(src.run), "iteration": k,
+                                                                 **path.to_json()}))
         title = f"{src.run.name} iteration {k}: force over the motion" + (" (clutches slip)" if hw.model == "slip" else "")
         print(f"wrote {path_plot(path, stem.with_suffix('.png'), title)}"
               f" and {stem.with_suffix('.json')}")
@@ -190,7 +191,7 @@ def cmd_evaluate(args) -> int:
             doc["path"] = path.to_json()
         if others:
             doc["transfer"] = others
-        atomic_write_text(args.json, json.dumps(doc, indent=1))
+        atomic_write_text(args.json, json_text(doc))
         print(f"wrote {args.json}")
     return 0
 

@@ -11,14 +11,13 @@ from kgarment.constants import PLAN_EXHAUSTIVE
 
 
 def cmd_plan(args) -> int:
-    import json
 
     from kgarment.design import Evaluator, load_design, parse_design_source
     from kgarment.design.driver import run_inputs
     from kgarment.design.plan import make_plan, plan_markdown
     from kgarment.design.run import iteration_of
     from kgarment.errors import KgarmentError
-    from kgarment.io import atomic_write_text, check_output_folder
+    from kgarment.io import atomic_write_text, check_output_folder, json_text
     from kgarment.problem import load_problem, override
 
     if args.out:
@@ -63,7 +62,7 @@ def cmd_plan(args) -> int:
               f"({s.fraction:.0%} of all ON)" + (f"; also locks {locks}" if locks else ""))
     out.mkdir(parents=True, exist_ok=True)
     doc = {"run": str(src.run), "iteration": k, **plan.to_json()}
-    atomic_write_text(files[0], json.dumps(doc, indent=1))
+    atomic_write_text(files[0], json_text(doc))
     atomic_write_text(files[1], plan_markdown(plan, f"{src.run} iteration {k}"))
     print(f"{time.time() - t0:.0f} s; wrote {files[0]} and {files[1]}")
     return 0

@@ -31,6 +31,8 @@ def cmd_reproduce(args) -> int:
     print(f"reproducing {len(exps)} experiment(s) at {res.name} resolution"
           + (f" with the {args.preset} material preset" if args.preset else "")
           + (f" with clutches {args.clutch_model or 'slip'}" if args.clutch_model or args.holding_force else "")
+          + ({True: " with buckling clutch strips", False: " with clutch strips that resist compression"}
+             .get(args.buckle, ""))
           + f" into {out} "
           f"(finished runs and evaluations there are reused): {', '.join(e.name for e in exps)}")
     t0 = time.time()
@@ -46,7 +48,8 @@ def cmd_reproduce(args) -> int:
                                    f"{row['seconds']:5.1f} s/it")
 
         doc = reproduce(out, res.name, args.experiments, args.device, progress,
-                        {"preset": args.preset, "clutch_model": args.clutch_model, "holding_force": args.holding_force})
+                        {"preset": args.preset, "clutch_model": args.clutch_model, "holding_force": args.holding_force,
+                         "buckle": args.buckle})
     md, page = write_report(out, doc)
     print(f"done in {(time.time() - t0) / 60:.1f} min; report: {page} (Markdown twin: {md}); runs in {out / 'runs'}")
     return 0

@@ -35,7 +35,7 @@ from kgarment.design.run import best_iteration, check_run_folder, load_checkpoin
 from kgarment.design.setup import DesignSetup, setup_from_problem
 from kgarment.errors import Cancelled, KgarmentError
 from kgarment.garment import Garment
-from kgarment.io import atomic_save_npz, atomic_write_text, replace_folder
+from kgarment.io import atomic_save_npz, atomic_write_text, json_text, replace_folder
 from kgarment.problem import (
     Problem,
     build_body,
@@ -226,7 +226,7 @@ def evaluate_final(dr: DesignRun, iteration: int) -> tuple[DesignEvaluation, lis
     res = ev.evaluate(design, loads=True, known=None if path is None else path.ends)
     doc = {"run": str(dr.run), "iteration": iteration, **res.to_json(),
            **({} if path is None else {"path": path.to_json()})}
-    paths = [atomic_write_text(dr.run / "final" / "evaluation.json", json.dumps(doc, indent=1))]
+    paths = [atomic_write_text(dr.run / "final" / "evaluation.json", json_text(doc))]
     if res.loads is not None:
         paths.append(load_chart(res.loads, dr.run / "final" / "clutch_loads.png",
                                 f"{dr.garment.name}: clutch loads of the final design"))

@@ -22,7 +22,7 @@ from kgarment.design.driver import finish, open_run
 from kgarment.design.run import run_status
 from kgarment.design.wearers import split_key, wearer_key, wearer_problem
 from kgarment.errors import KgarmentError
-from kgarment.io import atomic_write_text
+from kgarment.io import atomic_write_text, json_text
 from kgarment.problem import Problem
 
 log = logging.getLogger(__name__)
@@ -68,7 +68,7 @@ def run_sizes(problem: Problem, out, *, device: str = "cpu", force: bool = False
     for name, p in jobs:
         _design(p, runs / name, device, force, None if progress is None else progress(name))
     doc = compare(runs, names, list(problem.motions))
-    atomic_write_text(out / "sizes.json", json.dumps(doc, indent=1))
+    atomic_write_text(out / "sizes.json", json_text(doc))
     atomic_write_text(out / "sizes.md", sizes_markdown(doc))
     sizes_plot(doc, out / "sizes.png")
     return doc

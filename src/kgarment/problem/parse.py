@@ -419,7 +419,7 @@ def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
 def override(problem: Problem, *, motions=None, template: str | None = None, subdivision: int | None = None,
              preset: str | None = None, method: str | None = None, tol: float | None = None,
              max_iterations: int | None = None, clutch_model: str | None = None,
-             holding_force: float | None = None, refine: bool = False) -> Problem:
+             holding_force: float | None = None, buckle: bool | None = None, refine: bool = False) -> Problem:
     """``problem`` with command-line overrides (None: keep the file's), validated with the
     same rules and messages as the problem file's fields."""
     changes: dict = {}
@@ -447,7 +447,7 @@ def override(problem: Problem, *, motions=None, template: str | None = None, sub
             raise KgarmentError("--refine: coarse-to-fine is for one body, not a multi-body design ([body] phenotypes)")
         d = changes.get("design", problem.design)
         changes["design"] = dataclasses.replace(d, levels=tuple(range(changes["garment"].subdivision)))
-    if clutch_model is not None or holding_force is not None:
+    if clutch_model is not None or holding_force is not None or buckle is not None:
         c = problem.clutch_spec()
         raw = c.hardware.to_dict()
         if clutch_model == "locked":  # the file's holding force or stress does nothing then
@@ -456,5 +456,7 @@ def override(problem: Problem, *, motions=None, template: str | None = None, sub
             raw["model"] = clutch_model
         if holding_force is not None:
             raw["holding_force"] = holding_force
+        if buckle is not None:
+            raw["buckle"] = bool(buckle)
         changes["clutches"] = dataclasses.replace(c, hardware=_hardware(raw), default=False)
     return dataclasses.replace(problem, **changes)

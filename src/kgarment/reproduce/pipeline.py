@@ -27,7 +27,7 @@ import numpy as np
 
 from kgarment.design import design_values
 from kgarment.errors import KgarmentError
-from kgarment.io import atomic_write_text
+from kgarment.io import atomic_write_text, json_text
 from kgarment.render import faces_near, render_design
 from kgarment.reproduce.baselines import anchor_rings, manual_design, random_design
 from kgarment.reproduce.catalog import objectives_at_target
@@ -97,6 +97,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     }
     entry = {"name": exp.name, "title": exp.title, "group": exp.group, "multi": exp.multi,
              "preset": problem.materials.preset, "clutch_model": problem.clutch_spec().hardware.model,
+             "clutch_buckle": problem.clutch_spec().hardware.buckle,
              "paper": {m: list(v) for m, v in exp.paper.items()}, "budget": budget,
              "garment": g.name, "faces": int(g.n_faces), "clutches": len(ev.strips), "motions": ev.motions,
              "states": ev.n_states, "run": _run_summary(ours), "compliance_run": _run_summary(comp),
@@ -239,7 +240,7 @@ def _document(res, results: dict, cross: dict, t0: float, device: str) -> dict:
 
 def _write(out: Path, doc: dict) -> None:
     atomic_write_text(out / DATA, json.dumps(doc, indent=1))
-    atomic_write_text(out / "results.json", json.dumps(summary(doc), indent=1))
+    atomic_write_text(out / "results.json", json_text(summary(doc)))  # strict JSON: NaN -> null
 
 
 def previous_results(out: Path, res, overrides: dict | None) -> dict:
@@ -262,13 +263,20 @@ def previous_results(out: Path, res, overrides: dict | None) -> dict:
         if name not in BY_NAME:
             continue
         p = experiment_problem(BY_NAME[name], res, overrides=overrides)
-        now = (p.materials.preset, p.clutch_spec().hardware.model)
-        then = (e.get("preset", "paper"), e.get("clutch_model", "locked"))
+        hw = p.clutch_spec().hardware
+        now = (p.materials.preset, hw.model, hw.buckle)
+        then = (e.get("preset", "paper"), e.get("clutch_model", "locked"), bool(e.get("clutch_buckle", False)))
         if now != then:
-            raise KgarmentError(f"{path}: {name} was made with preset / clutch model {then[0]} / {then[1]}, not "
-                                f"{now[0]} / {now[1]}; give another --out")
+            raise KgarmentError(f"{path}: {name} was made with {_setting(then)}, not {_setting(now)}; "
+                                "give another --out")
         kept[name] = e
     return kept
+
+
+def _setting(preset_model_buckle: tuple) -> str:
+    """'preset paper, clutch model locked' (and ', buckling clutch strips') for an error line."""
+    preset, model, buckle = preset_model_buckle
+    return f"preset {preset}, clutch model {model}" + (", buckling clutch strips" if buckle else "")
 
 
 def _design_summary(ev: dict) -> dict:

@@ -151,7 +151,10 @@ def comparison_paragraph(doc: dict) -> str:
             + resolution_words(doc) + "), the `" + doc.get("preset", "paper") + "` material preset is used ("
             + PRESET_WORDS.get(doc.get("preset", "paper"), "") + ")"
             + (", the clutches slip at their holding force (the paper's never do)" if "slip" in doc.get("clutch_model", "")
-               else "") + ", and our Newton solver finds tighter equilibria than the paper's L-BFGS. rho is a ratio to "
+               else "")
+            + (", the ON clutch strips buckle instead of resisting compression (the paper's resist it as stiffly as "
+               "tension)" if any(e.get("clutch_buckle") for e in doc.get("experiments", {}).values()) else "")
+            + ", and our Newton solver finds tighter equilibria than the paper's L-BFGS. rho is a ratio to "
             "the fully reinforced garment, so it depends on all of these."
             + (f" Where we fall more than 2x short ({names([r for r in under if r[0] < 0.5])}), see the experiment "
                "below: its design carries no load path through the clutch for that motion." if any(

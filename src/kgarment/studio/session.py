@@ -36,7 +36,7 @@ from kgarment.design import design_values, load_design_history
 from kgarment.design.run import final_iteration
 from kgarment.errors import KgarmentError
 from kgarment.garment import Garment
-from kgarment.io import atomic_save_npz, atomic_write_text
+from kgarment.io import atomic_save_npz, atomic_write_text, json_text
 from kgarment.problem import (
     Problem,
     build_body,
@@ -231,7 +231,7 @@ def save_session(state: StudioState, folder, settings: dict | None = None, compa
         meta["compare"] = "compare.npz"
         written.append(folder / "compare.npz")
     if results:
-        atomic_write_text(folder / "results.json", json.dumps(results, indent=1))
+        atomic_write_text(folder / "results.json", json_text(results))
         written.append(folder / "results.json")
     if run is not None:
         meta["run"] = str(Path(run).resolve())
