@@ -134,12 +134,19 @@ def test_activation_continuation_reaches_the_on_equilibrium(anny_body):
     setup = dataclasses.replace(setup, solver=dataclasses.replace(setup.solver, workers=1))
     design = np.where(np.arange(g.n_faces) % 3 == 0, 1.0, setup.model.preset.x_min)
     on = next(s for k, s in setup.states() if k[1] == "on")
-    r = activation_continuation(setup, design, on)
+    (r,) = activation_continuation(setup, design, [on])
     assert r.name == on.name and r.converged
     assert r.convergence.iterations >= len(CONTINUATION)
     prob = prepare_state(setup.model, design, on, setup.solver)  # checked independently of the solver
     _, grad, _ = prob.evaluate(torch.as_tensor(r.x), order=1)
     assert prob.residual(grad) <= setup.solver.tol
+    # the clutches-off equilibrium from the skin-tight start, solved already (the evaluator's
+    # OFF state), is the first step: given, it is not solved again and the end is the same
+    off = next(s for k, s in setup.states() if k[1] == "off")
+    (r_off,) = setup.solve(design, [off])
+    (again,) = activation_continuation(setup, design, [on], [r_off])
+    assert again.converged and np.allclose(again.x, r.x, atol=1e-9)
+    assert again.convergence.iterations == r.convergence.iterations
 
 
 def test_settle_cools_the_exchange_at_the_target():
