@@ -194,28 +194,3 @@ def test_skin_start_keeps_the_lower_energy_of_both_starts():
         assert r.total_energy == best.total_energy and np.array_equal(r.x, best.x)
     # the iteration's Newton count is that of both starts' solves, not only the kept ones
     assert solved.newton_iterations == sum(r.convergence.iterations for r in warm + cold)
-
-
-def test_skin_every_checks_the_skin_tight_start_on_the_way_and_always_at_the_target():
-    """``[solver] skin_every = 3``: on the way to the target area only every third iteration
-    also solves from the skin-tight garment (the others: the warm start alone, the same as
-    without ``skin_start``); at the target area every iteration does; iteration 0 never."""
-    import dataclasses
-
-    from kgarment.design.loop import iterate, solve
-
-    setup, _ = _sheet_setup(max_iterations=6)
-    every = dataclasses.replace(setup, skin_start=True, skin_every=3)
-    st = iterate(every, initial_state(every))
-    seen = []
-    for _ in range(4):  # iterations 1-4, still on the way to the target area
-        assert st.target != every.params.target_area
-        both = solve(every, st)
-        alone = solve(setup, st)  # without skin_start: the warm start only
-        same = both.newton_iterations == alone.newton_iterations and all(
-            np.array_equal(a.x, b.x) for a, b in zip(both.results, alone.results))
-        seen.append((st.iteration, same))
-        st = iterate(every, st)
-    assert seen == [(1, True), (2, True), (3, False), (4, True)]
-    assert [every.skin_tight_too(i, every.params.target_area) for i in (0, 1, 2, 4)] == [False, True, True, True]
-    assert not dataclasses.replace(every, skin_start=False).skin_tight_too(3, every.params.target_area)

@@ -143,7 +143,7 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     states = [s for _, s in keyed]
     opts = setup.options(st.iteration, st.target)
     warm = [st.warm.get(s.name) for s in states]
-    if setup.skin_tight_too(st.iteration, st.target) and st.warm:
+    if setup.skin_start and st.warm:
         warm_results, cold = solve_two_starts(setup, st.design, states, warm, opts)
         results = [pick_equilibrium(w, c).result for w, c in zip(warm_results, cold)]
         both = warm_results + cold

@@ -43,7 +43,6 @@ class DesignSetup:
     attached : (a,) attachment faces;  loop_faces : per boundary loop of the garment, the
     faces touching it (both for :func:`kgarment.design.connect.connect_design`);
     skin_start : iterations also solve from the skin-tight start (``SolverSpec.skin_start``);
-    skin_every : on the way to the target area only every this many (``SolverSpec.skin_every``);
     activation : {motion: (K,) activation in [0, 1] of its ON state} ([motions.activation];
     a motion not in it switches every clutch on);  lockout : weight of the penalty on what
     other motions' sets store in a motion (the active objective's ``lock:`` states);
@@ -80,7 +79,6 @@ class DesignSetup:
     wearers: dict[str, Wearer] = field(default_factory=dict, repr=False)
     path_start: int = 0
     path_frames: dict[str, tuple[Motion, ...]] = field(default_factory=dict, repr=False)
-    skin_every: int = 1
 
     @classmethod
     def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
@@ -89,7 +87,7 @@ class DesignSetup:
               activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0,
               balance: float = 0.0, guard: float = 0.0, combine: str = "sum",
               wearers: dict[str, Wearer] | None = None, path_start: int = 0,
-              path_frames: dict[str, tuple[Motion, ...]] | None = None, skin_every: int = 1) -> DesignSetup:
+              path_frames: dict[str, tuple[Motion, ...]] | None = None) -> DesignSetup:
         """Precompute areas, filter, adjacency and clutch ends for ``model`` (the garment on
         the body it is cut from; ``wearers``: a multi-body design's, see the class doc)."""
         X, F = model.garment_rest, model.garment_faces
@@ -109,7 +107,7 @@ class DesignSetup:
                    attached.astype(np.int64), loops, skin_start,
                    {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout),
                    float(balance), float(guard), combine, dict(wearers or {}), int(path_start),
-                   dict(path_frames or {}), max(int(skin_every), 1))
+                   dict(path_frames or {}))
 
     def model_of(self, motion: str) -> SimModel:
         """The SimModel ``motion`` is solved on (its wearer's garment)."""
@@ -224,14 +222,6 @@ class DesignSetup:
             out.append((f"{SOLO}{self.model.clutches[k].name}", g))
         return out
 
-    def skin_tight_too(self, iteration: int, target: float) -> bool:
-        """Whether an iteration also solves from the skin-tight start: with ``skin_start``,
-        every ``skin_every``-th iteration on the way to the target area and every one at it
-        (iteration 0, the fully reinforced garment, has no warm start to compare)."""
-        if not self.skin_start or iteration == 0:
-            return False
-        return target == self.params.target_area or iteration % self.skin_every == 0
-
     def options(self, iteration: int, target: float) -> SolverOptions:
         """The solver options of an iteration: ``evolution_solver`` from iteration 1 while the
         target area differs from A*, ``solver`` otherwise."""
@@ -288,7 +278,7 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
                              lockout=d.lockout if d.objective == "active" else 0.0,
                              balance=d.balance if d.objective == "active" else 0.0, guard=d.guard,
                              combine=d.combine if d.objective == "active" else "sum",
-                             path_start=path_start, path_frames=path_frames, skin_every=problem.solver.skin_every)
+                             path_start=path_start, path_frames=path_frames)
 
 
 def activation_vectors(problem: Problem, names: list[str]) -> dict[str, np.ndarray]:

@@ -406,11 +406,8 @@ def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
     else:
         garment["mask"] = str(Path(g.mask).resolve())
         garment["attach"] = list(g.attach)
-    solver = asdict(problem.solver)
-    if solver["skin_every"] == 1:  # the default: not written, so earlier runs' files and hashes stay as they were
-        del solver["skin_every"]
     out = {"body": body, "motions": motions, "garment": garment, "design": problem.design.flat(),
-           "solver": solver, "materials": asdict(problem.materials)}
+           "solver": asdict(problem.solver), "materials": asdict(problem.materials)}
     if clutch_file is not None:
         out["clutches"] = {"file": str(Path(clutch_file).resolve())}
     hw = problem.clutch_spec().hardware.to_dict()

@@ -223,11 +223,6 @@ class SolverSpec:
     clutches that a frictionless limb lets slide off the stretched side (the arm-flexion
     sleeve: along the warm-started path the clutch stays over the outer elbow at 40-300% more
     energy than where the garment settles, turned ~20 degrees about the arm).
-    skin_every : with ``skin_start``, the skin-tight start only every ``skin_every``-th
-    iteration on the way to the target area (1: every iteration); every iteration at the
-    target area, whose objectives decide convergence and the reported design, keeps it.  The
-    skin-tight solves are cold (5-10 times a warm solve's Newton iterations), so they are most
-    of such a run's time; the warm path then goes on from the lower equilibrium found.
     path_start : every ``path_start``-th design iteration (0: never) also solves each ON state
     over its motion from rest (``PATH_START_FRAMES`` frames, each from the one before, the
     last the target pose) and keeps that equilibrium where it is lower by more than 1%
@@ -245,7 +240,6 @@ class SolverSpec:
     evolution_tol: float = C.EVOLUTION_TOL
     max_iter: int = C.MAX_NEWTON
     skin_start: bool = False
-    skin_every: int = 1
     path_start: int = 0
     workers: int = 0
 
