@@ -303,3 +303,20 @@ def test_a_run_folder_made_with_other_clutch_hardware_is_refused(tmp_path):
     assert slip.clutch_spec().hardware.model == "slip"
     with pytest.raises(KgarmentError, match="other clutch hardware"):
         _check_same_problem(slip, tmp_path)
+
+
+def test_the_reproduction_keeps_the_papers_clutch_strips():
+    """The example files design with buckling clutch strips; the reproduction reproduces the
+    paper's model (strips that resist compression) unless told --buckle, and its problems
+    are then the ones it made before the examples buckled (nothing written for the default
+    hardware: the same cache keys and run folders)."""
+    from kgarment.problem import example_path, load_problem, problem_to_dict
+    from kgarment.reproduce.catalog import BY_NAME, RESOLUTIONS
+    from kgarment.reproduce.experiments import experiment_problem
+
+    exp, res = BY_NAME["sleeve_two_motions"], RESOLUTIONS["tiny"]
+    assert load_problem(example_path(exp.name)).clutch_spec().hardware.buckle
+    paper = experiment_problem(exp, res)
+    assert not paper.clutch_spec().hardware.buckle and problem_to_dict(paper).get("clutches") is None
+    assert experiment_problem(exp, res, overrides={"buckle": True}).clutch_spec().hardware.buckle
+    assert not experiment_problem(exp, res, overrides={"buckle": None, "preset": None}).clutch_spec().hardware.buckle

@@ -107,3 +107,24 @@ def test_buckle_on_the_command_line():
     assert hw.buckle and hw.model == "slip" and hw.holding_force == (("*", 40.0),)
     off = override(on, buckle=sp.parse_args(["--no-buckle"]).buckle)
     assert not off.clutch_spec().hardware.buckle and off.clutch_spec().hardware.holding_force == (("*", 40.0),)
+
+
+def test_the_reference_is_the_stabler_of_its_two_starts(anny_body):
+    """rho's denominator, the fully reinforced garment ON, is solved from the skin-tight
+    garment and from its OFF equilibrium (the clutches switched on in the garment as worn),
+    and the lower-energy one is kept. With buckling strips the two differ on the main job's
+    shirt in arms forward (2026-11-26: 50.0 J against 39.8 J of total energy)."""
+    from kgarment.design import Evaluator
+    from kgarment.problem import example_path, load_problem, override
+
+    p = override(load_problem(example_path("shirt_three_motions")), subdivision=0, motions=["arms_forward"])
+    assert p.clutch_spec().hardware.buckle  # the example's strips
+    ev = Evaluator.from_problem(p, body=anny_body)
+    keyed = dict(ev.keyed())
+    on, off = keyed[("arms_forward", "on")], keyed[("arms_forward", "off")]
+    ref_on, ref_off = ev.reference([(("arms_forward", "on"), on), (("arms_forward", "off"), off)])
+    full = np.ones(ev.n_faces)
+    (skin,) = ev.setup.solve(full, [on])
+    (worn,) = ev.setup.solve(full, [on], warm_start=[ref_off.x])
+    assert skin.converged and worn.converged and worn.total_energy < 0.98 * skin.total_energy
+    assert ref_on.total_energy == worn.total_energy and np.array_equal(ref_on.x, worn.x)

@@ -85,8 +85,9 @@ def add_overrides(sp, *, motion: bool = True, garment: bool = True, subdivision:
         add_clutch_model(sp)
 
 
-def add_clutch_model(sp) -> None:
-    """--clutch-model and --holding-force (the [clutches] hardware, kgarment.sim.slip)."""
+def add_clutch_model(sp, buckle_default: str = "the problem's [clutches] buckle") -> None:
+    """--clutch-model, --holding-force and --buckle (the [clutches] hardware, kgarment.sim.slip;
+    ``buckle_default``: what --help says happens without --buckle / --no-buckle)."""
     sp.add_argument("--clutch-model", choices=C.CLUTCH_MODELS, help="locked: an ON clutch never slips (the "
                     "paper's model); slip: it holds up to its holding force and slides at it beyond "
                     "(default: the problem's [clutches] model)")
@@ -95,7 +96,7 @@ def add_clutch_model(sp) -> None:
                     f"the problem's, else {C.HOLDING_STRESS / 1e4:g} N/cm^2 of strip)")
     sp.add_argument("--buckle", action=argparse.BooleanOptionalAction, default=None,
                     help="ON clutch strips buckle: they take no compression (--no-buckle: they resist it as stiffly "
-                    "as tension, the paper's model; default: the problem's [clutches] buckle)")
+                    f"as tension, the paper's model; default: {buckle_default})")
 
 
 def overrides(args) -> dict:

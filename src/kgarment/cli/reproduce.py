@@ -31,8 +31,7 @@ def cmd_reproduce(args) -> int:
     print(f"reproducing {len(exps)} experiment(s) at {res.name} resolution"
           + (f" with the {args.preset} material preset" if args.preset else "")
           + (f" with clutches {args.clutch_model or 'slip'}" if args.clutch_model or args.holding_force else "")
-          + ({True: " with buckling clutch strips", False: " with clutch strips that resist compression"}
-             .get(args.buckle, ""))
+          + (" with buckling clutch strips" if args.buckle else "")
           + f" into {out} "
           f"(finished runs and evaluations there are reused): {', '.join(e.name for e in exps)}")
     t0 = time.time()
@@ -75,6 +74,7 @@ def add_parsers(sub) -> None:
     sp.add_argument("--preset", choices=C.PRESET_NAMES, help="material preset of every experiment (default: the "
                     "example files', paper); give each preset its own --out")
     sp.add_argument("--report-only", action="store_true", help="rewrite the report from OUT/data.json")
-    add_clutch_model(sp)  # give a clutch model its own --out too
+    add_clutch_model(sp, "the paper's strips, whatever the example files say; a buckling reproduction "
+                     "needs its own --out")  # a clutch model too
     add_device(sp)
     sp.set_defaults(func=cmd_reproduce)

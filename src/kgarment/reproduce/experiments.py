@@ -48,13 +48,22 @@ __all__ = ["BY_NAME", "DATA", "EXPERIMENTS", "MULTI_OF_GROUP", "PAPER_SHIRT_MATR
 log = logging.getLogger(__name__)
 
 
+PAPER_BUCKLE = False  # the paper's clutch strips resist being shortened as stiffly as being stretched
+
+
 def experiment_problem(exp: Experiment, res: Resolution, objective: str = "active",
                        overrides: dict | None = None) -> Problem:
     """The example problem of ``exp`` at resolution ``res`` (and with ``objective``, and the
     problem ``overrides`` of :func:`kgarment.problem.override` -- the material ``preset``,
-    the ``clutch_model``, the ``holding_force`` -- where given; the balance term belongs to
-    the active objective and is dropped for the others)."""
-    p = override(load_problem(example_path(exp.name)), **(overrides or {}))
+    the ``clutch_model``, the ``holding_force``, ``buckle`` -- where given; the balance term
+    belongs to the active objective and is dropped for the others).  The clutch strips are
+    the paper's (:data:`PAPER_BUCKLE`) unless the overrides say ``buckle``: the example files'
+    buckling strips are for designing garments, the reproduction reproduces the paper's
+    model (README, "Clutches that buckle")."""
+    overrides = dict(overrides or {})
+    if overrides.get("buckle") is None:
+        overrides["buckle"] = PAPER_BUCKLE
+    p = override(load_problem(example_path(exp.name)), **overrides)
     g, d = p.garment, p.design
     if res.subdivision is not None:
         g = dataclasses.replace(g, subdivision=res.subdivision)

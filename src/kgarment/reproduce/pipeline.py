@@ -177,7 +177,9 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
               progress: Callable | None = None, overrides: dict | None = None) -> dict:
     """Run the selected experiments at ``resolution`` (with the material ``preset``, default:
     the example files', ``paper``) into ``out``; returns (and writes
-    ``out/data.json``, summarised in ``out/results.json``) everything the report shows."""
+    ``out/data.json``, summarised in ``out/results.json``) everything the report shows.
+    The clutch strips are the paper's unless ``overrides`` says ``buckle``
+    (:func:`kgarment.reproduce.experiments.experiment_problem`)."""
     res = RESOLUTIONS[resolution]
     exps = select(experiments)
     out = Path(out)
