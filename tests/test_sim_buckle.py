@@ -128,3 +128,6 @@ def test_the_reference_is_the_stabler_of_its_two_starts(anny_body):
     (worn,) = ev.setup.solve(full, [on], warm_start=[ref_off.x])
     assert skin.converged and worn.converged and worn.total_energy < 0.98 * skin.total_energy
     assert ref_on.total_energy == worn.total_energy and np.array_equal(ref_on.x, worn.x)
+    # asked for the ON state alone (the studio, one state at a time), the same equilibrium
+    (alone,) = Evaluator.from_problem(p, body=anny_body).reference([(("arms_forward", "on"), on)])
+    assert alone.total_energy == pytest.approx(ref_on.total_energy, rel=1e-9)
