@@ -24,6 +24,7 @@ from kgarment.reproduce.text import (
     md_table,
     performance_rows,
     preset_note,
+    strips_note,
     targets,
 )
 
@@ -147,7 +148,7 @@ def build_markdown(doc: dict, figures: dict) -> str:
         er += f" with {res['ar_max']} of the faces added per iteration at most"
     md = ["# kgarment reproduces *Computational Design of Active Kinesthetic Garments* (UIST 2022)", "",
           f"Resolution **{res['name']}** (garment subdivision {sub}{er}), material preset "
-          f"**{doc.get('preset', 'paper')}**{preset_note(doc)}, {res['seeds']} random seeds. "
+          f"**{doc.get('preset', 'paper')}**{preset_note(doc)}, {strips_note(doc)}, {res['seeds']} random seeds. "
           "rho is the relative energy density of method.md section 7: energy per reinforced area over that of "
           "the fully reinforced garment in the same state, clutch energy and area included; "
           "ON / OFF = clutches on / off. *ours* is the iteration with the highest objective among those at the "

@@ -180,6 +180,16 @@ PRESET_WORDS = {"paper": "the paper's text: plain cloth 0.5 MPa, reinforced 0.5 
                 "reference": "the paper's reference code: 0.5 / 5.7 / 25.7 MPa"}
 
 
+def strips_note(doc: dict) -> str:
+    """The report's words on its clutch strips: the paper's (they resist compression) or
+    buckling ones (``--buckle``, the example files' own)."""
+    if any(e.get("clutch_buckle") for e in doc.get("experiments", {}).values()):
+        return ("**buckling** clutch strips (`--buckle`: an ON strip takes no compression, as the example files "
+                "design; README, \"Clutches that buckle\")")
+    return ("the paper's clutch strips (an ON strip resists compression as stiffly as tension; the example files "
+            "design with buckling ones, `--buckle`)")
+
+
 def preset_note(doc: dict) -> str:
     """The report's words on its material preset: what it is, how strongly switching the
     clutches changes what the wearer works against in this report's designs (garment
