@@ -251,12 +251,12 @@ class Evaluator:
         todo = [(k, s) for k, s in keyed if k not in self._reference]
         if todo:  # with the OFF states the clutched ones start from (one state at a time: the studio)
             known = set(self._reference) | {k for k, _ in todo}
-            offs = {(k[0], "off") for k, s in todo if any(a > 0 for a in s.activation)} - known
+            offs = {(k[0], "off") for k, s in todo if s.clutched} - known
             todo += [(k, s) for k, s in self.setup.states() if k in offs]
             done = self.setup.solve(full, [s for _, s in todo])
             self._reference.update({k: r for (k, _), r in zip(todo, done)})
             off = {k[0]: self._reference[k] for k in self._reference if k[1] == "off" and self._reference[k].converged}
-            again = [(k, s) for k, s in todo if any(a > 0 for a in s.activation) and k[0] in off]
+            again = [(k, s) for k, s in todo if s.clutched and k[0] in off]
             if again:
                 second = self.setup.solve(full, [s for _, s in again], warm_start=[off[k[0]].x for k, _ in again])
                 for (k, _), r in zip(again, second):
@@ -276,9 +276,9 @@ class Evaluator:
         starts = [r.x for r in self.reference(keyed)] if starts is None else list(starts)
         from_starts, cold = solve_two_starts(setup, design, states, starts)
         out = [pick_equilibrium(a, b) for a, b in zip(cold, from_starts)]
-        todo = [i for i, e in enumerate(out) if not e.result.converged and any(a > 0 for a in states[i].activation)]
+        todo = [i for i, e in enumerate(out) if not e.result.converged and states[i].clutched]
         if todo:  # the continuation's first step is the motion's OFF state from skin-tight: solved already
-            off = {s.motion.name: r for s, r in zip(states, cold) if not any(a > 0 for a in s.activation)}
+            off = {s.motion.name: r for s, r in zip(states, cold) if not s.clutched}
             redone = activation_continuation(setup, design, [states[i] for i in todo],
                                              [off.get(states[i].motion.name) for i in todo])
             for i, r in zip(todo, redone):

@@ -271,6 +271,11 @@ class SimState:
     motion: Motion
     activation: tuple[float, ...] = ()
 
+    @property
+    def clutched(self) -> bool:
+        """Whether any clutch is switched on (some activation > 0)."""
+        return any(a > 0 for a in self.activation)
+
     @staticmethod
     def create(motion: Motion, activation, name: str | None = None) -> SimState:
         g = tuple(float(a) for a in np.atleast_1d(np.asarray(activation, dtype=np.float64)))
