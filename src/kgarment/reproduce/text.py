@@ -153,7 +153,7 @@ def comparison_paragraph(doc: dict) -> str:
             + (", the clutches slip at their holding force (the paper's never do)" if "slip" in doc.get("clutch_model", "")
                else "")
             + (", the ON clutch strips buckle instead of resisting compression (the paper's resist it as stiffly as "
-               "tension)" if any(e.get("clutch_buckle") for e in doc.get("experiments", {}).values()) else "")
+               "tension)" if buckling(doc) else "")
             + ", and our Newton solver finds tighter equilibria than the paper's L-BFGS. rho is a ratio to "
             "the fully reinforced garment, so it depends on all of these."
             + (f" Where we fall more than 2x short ({names([r for r in under if r[0] < 0.5])}), see the experiment "
@@ -180,10 +180,16 @@ PRESET_WORDS = {"paper": "the paper's text: plain cloth 0.5 MPa, reinforced 0.5 
                 "reference": "the paper's reference code: 0.5 / 5.7 / 25.7 MPa"}
 
 
+def buckling(doc: dict) -> bool:
+    """Whether the report's experiments were made with buckling clutch strips (``--buckle``;
+    a reproduction folder never mixes the two)."""
+    return any(e.get("clutch_buckle") for e in doc.get("experiments", {}).values())
+
+
 def strips_note(doc: dict) -> str:
     """The report's words on its clutch strips: the paper's (they resist compression) or
     buckling ones (``--buckle``, the example files' own)."""
-    if any(e.get("clutch_buckle") for e in doc.get("experiments", {}).values()):
+    if buckling(doc):
         return ("**buckling** clutch strips (`--buckle`: an ON strip takes no compression, as the example files "
                 "design; README, \"Clutches that buckle\")")
     return ("the paper's clutch strips (an ON strip resists compression as stiffly as tension; the example files "
