@@ -115,13 +115,26 @@ def test_force_over_the_motion(runs, anny_body, capsys):
     rows = json.loads((cli / "with-path.json").read_text())["rows"]
     assert {r["state"] for r in rows} == {"on", "off"} and all(isinstance(r["from_path"], bool) for r in rows)
     assert written.with_suffix(".png").stat().st_size > 10_000
-    frames = doc["frames"]
-    assert sorted((f["state"], f["t"]) for f in frames) == [("off", 0.5), ("off", 1.0), ("on", 0.5), ("on", 1.0)]
+    frames = doc["frames"]  # the rest pose (t = 0) first
+    assert sorted((f["state"], f["t"]) for f in frames) == [("off", 0.0), ("off", 0.5), ("off", 1.0),
+                                                             ("on", 0.0), ("on", 0.5), ("on", 1.0)]
     on = sorted((f["t"], f["energy_J"]) for f in frames if f["state"] == "on")
-    assert 0 < on[0][1] < on[1][1]
+    off = sorted((f["t"], f["energy_J"]) for f in frames if f["state"] == "off")
+    assert 0 < on[1][1] < on[2][1]
     assert all(set(f["tension_N"]) == {"elbow_outer.R"} and f["converged"] for f in frames)
+    # at rest the attachment rings and the body already hold the garment stretched: the work
+    # over the motion is the energy at the target less that at rest
+    assert off[0][1] > 0 and on[0][1] > 0
     s = doc["summary"][0]
-    assert s["work_on_J"] == pytest.approx(on[1][1]) and s["peak_on_N"] >= s["mean_on_N"]
+    assert s["energy_on_J"] == pytest.approx(on[2][1]) and s["energy_off_J"] == pytest.approx(off[2][1])
+    assert s["work_on_J"] == pytest.approx(on[2][1] - on[0][1])
+    assert s["work_off_J"] == pytest.approx(off[2][1] - off[0][1])
+    assert s["peak_on_N"] >= s["mean_on_N"]
+    # the rest pose is the motion at t = 0: the frames approach it as t goes to 0
+    rest = frame_motions(dr.problem, ["arm_flexion.right"], 1, rest=True)[0]["rest"].garment_x0
+    near = frame_motions(dr.problem, ["arm_flexion.right"], 20)  # t = 0.05 first
+    first = near[0][near[1][0][0]].garment_x0
+    assert 0 < np.abs(first - rest).max() < 0.1 * np.abs(target.garment_x0 - rest).max()
     assert "force over the motion" in capsys.readouterr().out
 
 

@@ -94,6 +94,6 @@ def test_the_reported_design_is_one_whose_motion_was_solved(tmp_path):
     assert [r["path_checked"] for r in metrics] == [i > 0 and i % 2 == 0 for i in range(len(metrics))]
     final = json.loads((tmp_path / "run" / "final" / "evaluation.json").read_text())
     assert next(r for r in metrics if r["iteration"] == final["iteration"])["path_checked"]
-    assert sorted({f["t"] for f in final["path"]["frames"]}) == pytest.approx([k / PATH_FRAMES
-                                                                              for k in range(1, PATH_FRAMES + 1)])
+    assert sorted({f["t"] for f in final["path"]["frames"]}) == pytest.approx([k / PATH_FRAMES  # rest, then frames
+                                                                              for k in range(PATH_FRAMES + 1)])
     assert all(isinstance(r["from_path"], bool) for r in final["rows"])

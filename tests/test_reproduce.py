@@ -137,12 +137,21 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
     assert {"every_clutch_loaded", "clutch_ends_supported", "one_part", "single_on_off",
             "beats_manual"} <= set(summary["targets"])
     assert all(isinstance(v, bool) for v in summary["targets"].values())
-    # the force over the motion: ours, manual and full, 2 frames ON and OFF per motion
+    # the force over the motion: ours, manual and full, the rest pose and 2 frames ON and OFF
+    # per motion; the work over the motion is the energy at the target less that at rest
     for e in doc["experiments"].values():
         assert set(e["path"]) == {"ours", "manual", "full"}
         for p in e["path"].values():
             assert sorted((f["motion"], f["state"], f["t"]) for f in p["frames"]) == sorted(
-                (m, s, t) for m in e["motions"] for s in ("on", "off") for t in (0.5, 1.0))
+                (m, s, t) for m in e["motions"] for s in ("on", "off") for t in (0.0, 0.5, 1.0))
+            energy = {(f["motion"], f["state"], f["t"]): f["energy_J"] for f in p["frames"]}
+            for row in p["summary"]:
+                m = row["motion"]
+                assert row["work_on_J"] == pytest.approx(energy[(m, "on", 1.0)] - energy[(m, "on", 0.0)])
+                assert row["work_off_J"] == pytest.approx(energy[(m, "off", 1.0)] - energy[(m, "off", 0.0)])
+            # at rest every motion's OFF state is the same garment on the same body
+            rest_off = [energy[(m, "off", 0.0)] for m in e["motions"]]
+            assert max(rest_off) == pytest.approx(min(rest_off), rel=1e-12)
     # one truth: the motion's end and the evaluation agree on the garment's energy (each keeps
     # the other's equilibrium where it is the lower), and the evaluation says which it kept
     for e in doc["experiments"].values():

@@ -8,9 +8,14 @@ from kgarment.errors import KgarmentError
 from kgarment.sim import garment_motions
 
 
-def frame_motions(problem, motions, frames: int) -> tuple[dict, list[tuple[str, str, float]]]:
+REST = "rest"  # the frame name of the rest pose (t = 0 of every motion)
+
+
+def frame_motions(problem, motions, frames: int, rest: bool = False) -> tuple[dict, list[tuple[str, str, float]]]:
     """({frame name: kgarment.sim.Motion}, [(frame name, motion, t)]): ``problem``'s garment
-    on its body posed at ``t = i / frames`` of each motion of ``motions`` (i = 1..frames)."""
+    on its body posed at ``t = i / frames`` of each motion of ``motions`` (i = 1..frames);
+    with ``rest`` also the rest pose, shared by every motion, as frame :data:`REST` (not in
+    the list)."""
     from kgarment.body.anny_backend import load_anny_body
     from kgarment.problem import build_garment
 
@@ -27,6 +32,8 @@ def frame_motions(problem, motions, frames: int) -> tuple[dict, list[tuple[str, 
             label = f"{name}@{t:.3f}"
             poses.append(BodyMotion(label, (lib[name].at(t),)))
             index.append((label, name, t))
+    if rest and motions:
+        poses.append(BodyMotion(REST, (lib[motions[0]].at(0.0),)))
     body = load_anny_body(poses, problem.body.phenotype)
     garment = build_garment(problem, body)
     return garment_motions(body, garment), index

@@ -6,9 +6,17 @@ same in simulation: the motion's bone rotations are scaled by ``t = 1/K, 2/K, ..
 (:meth:`kgarment.body.Motion.at`: the skinning transforms are interpolated, not the
 vertices), the body is posed in each frame, and the design's equilibrium is solved frame
 after frame, ON (the motion's activation set) and OFF, each frame starting from the
-previous frame's equilibrium.  Per frame: the garment's total energy (J; the work the
-wearer has done against it so far, the motion being quasi-static and the garment elastic)
-and the tension in every clutch (N, :func:`kgarment.sim.clutch_tensions`).
+previous frame's equilibrium.  Per frame: the garment's total energy (J) and the tension
+in every clutch (N, :func:`kgarment.sim.clutch_tensions`).
+
+The rest pose (t = 0) is a frame too, solved from the evaluator's starts (ON: also from the
+garment as worn OFF, the clutches switched on there).  The garment stores energy before
+the motion begins: the attachment rings and the body's contact hold it stretched (on the
+two-motion sleeve at subdivision 1, 12.2 J OFF at rest, of which 8.3 J in the attachment
+springs and 3.2 J in contact, against 13.0 J at the end of arm flexion).  The work the
+wearer does against the garment over the motion, the motion being quasi-static and the
+garment elastic, is therefore its energy at the target *less its energy at rest*
+(``work_on_J``, ``work_off_J`` of :meth:`PathReport.summary`).
 
 Equilibria of a sparse design on a frictionless body can switch from one frame to the next
 (the garment settles elsewhere, or a warm start carried over a moving body ends tangled in
@@ -32,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from kgarment.design.evaluate import MULTISTABLE
-from kgarment.design.frames import frame_motions
+from kgarment.design.frames import REST, frame_motions
 from kgarment.errors import KgarmentError
 from kgarment.sim import SimState, clutch_tensions, solve_states
 from kgarment.sim.slip import slides
@@ -97,18 +105,40 @@ class PathReport:
         return sorted((f for f in self.frames if f.motion == motion and f.state == state), key=lambda f: f.t)
 
     def summary(self) -> list[dict]:
-        """Per motion and clutch: peak and mean tension ON and OFF (N), and per motion the
-        work against the garment over the motion ON and OFF (J, the energy at the target)."""
+        """Per motion and clutch: peak and mean tension ON and OFF (N; the mean over the
+        frames after rest), and per motion the garment's energy at the target ON and OFF
+        (J) and the work against it over the motion (J: the energy at the target less the
+        energy at rest, where the report has the rest frame)."""
         out = []
         for m in self.motions:
             on, off = self.curve(m, "on"), self.curve(m, "off")
             for k, c in enumerate(self.clutches):
                 t_on = np.array([f.tension_N[k] for f in on])
                 t_off = np.array([f.tension_N[k] for f in off])
-                out.append({"motion": m, "clutch": c, "peak_on_N": float(t_on.max()), "mean_on_N": float(t_on.mean()),
-                            "peak_off_N": float(t_off.max()), "mean_off_N": float(t_off.mean()),
-                            "work_on_J": on[-1].energy_J, "work_off_J": off[-1].energy_J})
+                out.append({"motion": m, "clutch": c, "peak_on_N": float(t_on.max()),
+                            "mean_on_N": float(_moving(on, k).mean()), "peak_off_N": float(t_off.max()),
+                            "mean_off_N": float(_moving(off, k).mean()), "work_on_J": _work(on),
+                            "work_off_J": _work(off), "energy_on_J": on[-1].energy_J,
+                            "energy_off_J": off[-1].energy_J})
         return out
+
+    def with_frames(self, frames) -> PathReport:
+        """This report with ``frames`` (PathFrames, e.g. :func:`rest_frames`) added."""
+        return PathReport(self.clutches, tuple(frames) + self.frames, self.holding_N, self.ends)
+
+    @property
+    def has_rest(self) -> bool:
+        return any(f.t == 0.0 for f in self.frames)
+
+    @classmethod
+    def from_json(cls, doc: dict) -> PathReport:
+        """The report of :meth:`to_json`'s ``doc`` (without ``ends``)."""
+        clutches = tuple(doc["clutches"])
+        frames = tuple(PathFrame(f["motion"], f["state"], float(f["t"]), float(f["energy_J"]),
+                                 tuple(float(f["tension_N"][c]) for c in clutches), bool(f["converged"]),
+                                 bool(f.get("resolved", False))) for f in doc["frames"])
+        hold = tuple((m, tuple(float(h[c]) for c in clutches)) for m, h in doc.get("holding_N", {}).items())
+        return cls(clutches, frames, hold)
 
     def resolved(self) -> list[PathFrame]:
         return [f for f in self.frames if f.resolved]
@@ -141,6 +171,47 @@ class PathReport:
         return "\n".join(lines)
 
 
+def _moving(curve: list[PathFrame], k: int) -> np.ndarray:
+    """Clutch ``k``'s tension (N) in the frames of ``curve`` after rest."""
+    return np.array([f.tension_N[k] for f in curve if f.t > 0.0] or [0.0])
+
+
+def _work(curve: list[PathFrame]) -> float:
+    """The garment's energy at the end of ``curve`` less at its rest frame (J; the energy
+    at the end where the curve has no rest frame)."""
+    rest = curve[0].energy_J if curve and curve[0].t == 0.0 else 0.0
+    return curve[-1].energy_J - rest
+
+
+def rest_frames(evaluator, design: np.ndarray, problem, motions=None, rest_motion=None) -> list[PathFrame]:
+    """The rest pose (t = 0) of each motion of ``motions`` (default: the evaluator's), ON
+    (its activation set) and OFF, as PathFrames: the design's equilibrium there from the
+    evaluator's starts (:meth:`kgarment.design.Evaluator.equilibria`; a clutched state also
+    from the garment as worn OFF).  States of equal activation are solved once.
+    ``rest_motion``: the rest pose's kgarment.sim.Motion where the caller has it."""
+    setup, model = evaluator.setup, evaluator.setup.model
+    motions = evaluator.motion_names(motions)
+    if rest_motion is None:
+        rest_motion = frame_motions(problem, motions, 1, rest=True)[0][REST]
+    design = np.asarray(design, dtype=np.float64)
+    acts = {(m, s): setup.on_activation(m) if s == "on" else np.zeros(setup.n_clutches)
+            for m in motions for s in STATES}
+    unique: dict[bytes, tuple] = {}
+    for (m, s), a in acts.items():
+        key = np.asarray(a, dtype=np.float64).tobytes()
+        if key not in unique:  # keyed "@rest": the evaluator keeps equilibria per key (a motion may be "rest")
+            label = f"on:{m}" if s == "on" else "off"  # "off": the clutched states' second start
+            unique[key] = (("@rest", label), SimState.create(rest_motion, a, name=f"rest[{label}]"))
+    solved = dict(zip(unique, evaluator.equilibria(design, list(unique.values()))))
+    out = []
+    for (m, s), a in acts.items():
+        key = np.asarray(a, dtype=np.float64).tobytes()
+        r, st = solved[key], unique[key][1]
+        tension = clutch_tensions(model, design, st, r.x, setup.solver)
+        out.append(PathFrame(m, s, 0.0, float(r.total_energy), tuple(float(v) for v in tension), bool(r.converged)))
+    return out
+
+
 def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: int = PATH_FRAMES,
                 report: Callable[[str], None] | None = None) -> PathReport:
     """The :class:`PathReport` of ``design`` (m,) over ``frames`` frames of each motion of
@@ -155,7 +226,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         raise KgarmentError("--path: the force over the motion is solved on one body; a multi-body design's "
                             "wearers are evaluated at their target poses only (evaluate without --path)")
     motions = evaluator.motion_names(motions)
-    sim_motions, index = frame_motions(problem, motions, frames)
+    sim_motions, index = frame_motions(problem, motions, frames, rest=True)
     first = next(iter(sim_motions.values()))
     if first.garment_x0.shape != (model.n_garment, 3):
         raise KgarmentError("the frames' garment differs from the run's (another body or garment?)")
@@ -185,7 +256,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         results.update(zip(keys, solved))
     resolved = _anchor_target(evaluator, design, motions, frames, by_motion, state, results)
     resolved |= _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results)
-    out = []
+    out = rest_frames(evaluator, design, problem, motions, sim_motions[REST])
     for m in motions:
         for s in STATES:
             for i, (label, t) in enumerate(by_motion[m]):
@@ -332,17 +403,20 @@ def path_plot(report: PathReport, path, title: str = "") -> Path:
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for ax, m in zip(axes[0], motions):
         on, off = report.curve(m, "on"), report.curve(m, "off")
-        t = [0.0] + [f.t for f in on]
+        if not report.has_rest:  # an older report: nothing known at rest, drawn from zero
+            on, off = ([PathFrame(m, s, 0.0, 0.0, (0.0,) * len(report.clutches), True)] + c
+                       for s, c in (("on", on), ("off", off)))
+        t = [f.t for f in on]
         for k, c in enumerate(report.clutches):
             col = colors[k % len(colors)]
-            ax.plot(t, [0.0] + [f.tension_N[k] for f in on], color=col, lw=1.6, label=f"{c} ON")
-            ax.plot(t, [0.0] + [f.tension_N[k] for f in off], color=col, lw=1.0, ls="--", label=f"{c} OFF")
+            ax.plot(t, [f.tension_N[k] for f in on], color=col, lw=1.6, label=f"{c} ON")
+            ax.plot(t, [f.tension_N[k] for f in off], color=col, lw=1.0, ls="--", label=f"{c} OFF")
         ax.set_xlabel("motion progress")
         ax.set_title(m, fontsize=9)
         ax.grid(alpha=0.3)
         e = ax.twinx()
-        e.plot(t, [0.0] + [f.energy_J for f in on], color="k", lw=0.8, alpha=0.6)
-        e.plot(t, [0.0] + [f.energy_J for f in off], color="k", lw=0.8, ls=":", alpha=0.6)
+        e.plot(t, [f.energy_J for f in on], color="k", lw=0.8, alpha=0.6)
+        e.plot(t, [f.energy_J for f in off], color="k", lw=0.8, ls=":", alpha=0.6)
         e.set_ylabel("garment energy (J), ON solid / OFF dotted", fontsize=7)
         for f in report.resolved():
             if f.motion == m:

@@ -110,7 +110,7 @@ class CachedEvaluator:
         pkey = self._path_key(design, frames)
         if self.cache is not None and (hit := self.cache.get(key)) is not None \
                 and (phit := self.cache.get(pkey)) is not None:
-            return hit, phit
+            return hit, self._with_rest(design, pkey, phit)
         path = self._path_report(design, frames)
         out = {"label": label, **self.evaluator.evaluate(design, loads=loads, known=path.ends).to_json()}
         frames_json = path.to_json()
@@ -118,6 +118,22 @@ class CachedEvaluator:
             self.cache.put(pkey, frames_json)
             self.cache.put(key, out)
         return out, frames_json
+
+    def _with_rest(self, design: np.ndarray, key: str, doc: dict) -> dict:
+        """A cached path JSON ``doc`` made before paths had their rest frame (t = 0): the
+        rest frames solved now (:func:`kgarment.design.path.rest_frames`, seconds) and
+        added, the summary's work taken from them, and stored under ``key`` again; the
+        frames of the motion (minutes) stay those cached."""
+        if any(f["t"] == 0.0 for f in doc["frames"]):
+            return doc
+        from kgarment.design.path import PathReport, rest_frames
+
+        motions = list(dict.fromkeys(f["motion"] for f in doc["frames"]))
+        rest = rest_frames(self.evaluator, np.asarray(design, dtype=np.float64), self.problem, motions)
+        out = PathReport.from_json(doc).with_frames(rest).to_json()
+        if self.cache is not None:
+            self.cache.put(key, out)
+        return out
 
     def _path_key(self, design: np.ndarray, frames: int) -> str:
         return f"{self.name}|{design_key(design)}|path{frames}|v2"  # v2: the end anchored at the target's equilibrium
@@ -155,7 +171,7 @@ class CachedEvaluator:
         design = np.asarray(design, dtype=np.float64)
         key = self._path_key(design, frames)
         if self.cache is not None and (hit := self.cache.get(key)) is not None:
-            return hit
+            return self._with_rest(design, key, hit)
         out = self._path_report(design, frames).to_json()
         if self.cache is not None:
             self.cache.put(key, out)

@@ -84,21 +84,28 @@ PATH_COLORS = {"ours": "#1f3b73", "manual": "#d98c1f", "full": "#555555"}
 def force_curves(path_doc: dict, motion: str, state: str) -> tuple[list[float], list[float]]:
     """(t, force) of one design's path JSON (:meth:`kgarment.design.path.PathReport.to_json`)
     in ``motion`` and ``state``: per frame the largest clutch tension (N), the rest pose
-    (0, 0) first."""
+    first (its frame, or (0, 0) in a JSON made before paths had one)."""
     frames = sorted((f for f in path_doc["frames"] if f["motion"] == motion and f["state"] == state),
                     key=lambda f: f["t"])
-    return [0.0] + [f["t"] for f in frames], [0.0] + [max(f["tension_N"].values(), default=0.0) for f in frames]
+    rest = [] if frames and frames[0]["t"] == 0.0 else [(0.0, 0.0)]
+    pts = rest + [(f["t"], max(f["tension_N"].values(), default=0.0)) for f in frames]
+    return [p[0] for p in pts], [p[1] for p in pts]
 
 
 def force_stats(path_doc: dict, motion: str) -> dict:
-    """Peak and mean (over the frames) of the largest clutch tension ON and OFF (N), and the
-    work against the garment over the motion ON and OFF (J, its energy at the target)."""
+    """Peak (over the frames) and mean (over the frames after rest) of the largest clutch
+    tension ON and OFF (N), and the work against the garment over the motion ON and OFF (J:
+    its energy at the target less at rest, :meth:`kgarment.design.path.PathReport.summary`)."""
     out = {}
     for s in ("on", "off"):
-        _, f = force_curves(path_doc, motion, s)
-        frames = [x for x in path_doc["frames"] if x["motion"] == motion and x["state"] == s]
-        out[s] = {"peak": max(f), "mean": sum(f[1:]) / max(len(f) - 1, 1),
-                  "work": max(frames, key=lambda x: x["t"])["energy_J"] if frames else 0.0}
+        t, f = force_curves(path_doc, motion, s)
+        moving = [v for a, v in zip(t, f) if a > 0.0]
+        frames = sorted((x for x in path_doc["frames"] if x["motion"] == motion and x["state"] == s),
+                        key=lambda x: x["t"])
+        rest = frames[0]["energy_J"] if frames and frames[0]["t"] == 0.0 else 0.0
+        out[s] = {"peak": max(f), "mean": sum(moving) / max(len(moving), 1),
+                  "work": frames[-1]["energy_J"] - rest if frames else 0.0,
+                  "energy": frames[-1]["energy_J"] if frames else 0.0}
     return out
 
 

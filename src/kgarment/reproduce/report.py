@@ -118,8 +118,9 @@ def force_lines(e: dict) -> list[str]:
             st = force_stats(doc, m)
             rows.append([m, kind, f"{st['on']['peak']:.0f} / {st['off']['peak']:.0f}",
                          f"{st['on']['mean']:.0f} / {st['off']['mean']:.0f}",
-                         f"{st['on']['work']:.3g} / {st['off']['work']:.3g}"])
-    n = len(next(iter(paths.values()))["frames"]) // max(2 * len(e["motions"]), 1)
+                         f"{st['on']['work']:.3g} / {st['off']['work']:.3g}",
+                         f"{st['on']['energy']:.3g} / {st['off']['energy']:.3g}"])
+    n = sum(f["t"] > 0 for f in next(iter(paths.values()))["frames"]) // max(2 * len(e["motions"]), 1)
     notes = []
     for kind, doc in paths.items():
         bad = [f for f in doc["frames"] if not f["converged"]]
@@ -134,8 +135,11 @@ def force_lines(e: dict) -> list[str]:
             notes.append(f"{kind}: {sl['clutch']} slides at its holding force ({sl['holding_N']:.0f} N) in "
                          f"{sl['motion']} from t = {sl['from_t']:.2f}")
     return ["Force over the motion (" + str(n) + " frames from rest to the target pose; force: the largest clutch "
-            "tension; work: the garment's energy at the target), ON / OFF.", ""] + \
-        md_table(["motion", "design", "peak force (N)", "mean force (N)", "work (J)"], rows) + \
+            "tension, its mean over the frames after rest; work: what the wearer does against the garment, its "
+            "energy at the target less its energy at rest, where the attachment rings and the body already hold it "
+            "stretched), ON / OFF.", ""] + \
+        md_table(["motion", "design", "peak force (N)", "mean force (N)", "work (J)", "energy at the target (J)"],
+                 rows) + \
         ([f"- {x}" for x in notes] + [""] if notes else [])
 
 
