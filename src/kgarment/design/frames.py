@@ -7,7 +7,6 @@ from kgarment.body.motions import Motion as BodyMotion
 from kgarment.errors import KgarmentError
 from kgarment.sim import garment_motions
 
-
 REST = "rest"  # the frame name of the rest pose (t = 0 of every motion)
 
 
