@@ -41,6 +41,11 @@ def test_a_report_without_its_rest_frame_gets_it_added():
     back = PathReport.from_json(doc)
     assert back.frames == old.frames and not back.has_rest
     rest = [f for f in _frames(rest=True) if f.t == 0.0]
-    new = back.with_frames(rest)
+    new = back.with_rest(rest)
     assert new.has_rest and new.summary() == PathReport(("a", "b"), _frames(rest=True)).summary()
     assert PathReport.from_json(new.to_json()).summary() == new.summary()
+    assert new.to_json()["rest_starts"] >= 2 and "rest_starts" not in doc
+    # a rest frame solved again replaces the one before, it is not added twice
+    again = new.with_rest([PathFrame(f.motion, f.state, 0.0, f.energy_J - 1.0, f.tension_N, True) for f in rest])
+    assert len(again.frames) == len(new.frames)
+    assert again.summary()[0]["work_on_J"] == pytest.approx(new.summary()[0]["work_on_J"] + 1.0)

@@ -28,8 +28,11 @@ Where switching all clutches on changes the garment's energy by less than
 motion: shares are NaN ("n/a") and no clutch is loaded (ratios of two tiny differences
 would be noise).
 
-Garment energy is the total energy of an equilibrium (J): what the wearer works against
-when moving from the rest pose into the target pose.  The all-ON and all-OFF equilibria
+Garment energy is the total energy of an equilibrium (J).  It includes what the garment
+already holds at rest (its attachment rings and the body's contact keep it stretched; a
+taut clutch): the work the wearer does over the motion is the energy at the target less
+that at rest (:func:`kgarment.design.path.rest_frames`, ``evaluate --path``); differences
+between activations of one design (ON - OFF, the shares) are what the clutches add.  The all-ON and all-OFF equilibria
 come from the one design evaluator (:meth:`kgarment.design.Evaluator.solve_design`: its
 two starts, the evaluation tolerance); a state with one clutch ON, or one OFF, starts
 from the all-ON or the all-OFF equilibrium, whichever stores less energy under its

@@ -9,11 +9,11 @@ after frame, ON (the motion's activation set) and OFF, each frame starting from 
 previous frame's equilibrium.  Per frame: the garment's total energy (J) and the tension
 in every clutch (N, :func:`kgarment.sim.clutch_tensions`).
 
-The rest pose (t = 0) is a frame too, solved from the evaluator's starts (ON: also from the
-garment as worn OFF, the clutches switched on there).  The garment stores energy before
+The rest pose (t = 0) is a frame too (:func:`rest_frames`): the lowest equilibrium from the
+evaluator's starts and backwards from the first frame.  The garment stores energy before
 the motion begins: the attachment rings and the body's contact hold it stretched (on the
-two-motion sleeve at subdivision 1, 12.2 J OFF at rest, of which 8.3 J in the attachment
-springs and 3.2 J in contact, against 13.0 J at the end of arm flexion).  The work the
+two-motion sleeve at subdivision 1, 11.7 J OFF at rest, about 8 J of it in the attachment
+springs and 3 J in contact, against 13.0 J at the end of arm flexion).  The work the
 wearer does against the garment over the motion, the motion being quasi-static and the
 garment elastic, is therefore its energy at the target *less its energy at rest*
 (``work_on_J``, ``work_off_J`` of :meth:`PathReport.summary`).
@@ -32,6 +32,7 @@ re-solved.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -48,6 +49,7 @@ from kgarment.sim.slip import slides
 log = logging.getLogger(__name__)
 PATH_FRAMES = 10   # frames from rest to the target pose (``--path`` default)
 PATH_JUMP = 0.02   # a relative energy drop between frames counted as a switch of equilibrium
+REST_STARTS = 2    # how the rest frame is solved (JSON "rest_starts"; 2: also backwards from the first frame)
 STATES = ("on", "off")
 
 
@@ -122,9 +124,10 @@ class PathReport:
                             "energy_off_J": off[-1].energy_J})
         return out
 
-    def with_frames(self, frames) -> PathReport:
-        """This report with ``frames`` (PathFrames, e.g. :func:`rest_frames`) added."""
-        return PathReport(self.clutches, tuple(frames) + self.frames, self.holding_N, self.ends)
+    def with_rest(self, frames) -> PathReport:
+        """This report with its rest frames (t = 0) replaced by ``frames`` (:func:`rest_frames`)."""
+        return PathReport(self.clutches, tuple(frames) + tuple(f for f in self.frames if f.t > 0.0), self.holding_N,
+                          self.ends)
 
     @property
     def has_rest(self) -> bool:
@@ -146,6 +149,8 @@ class PathReport:
     def to_json(self) -> dict:
         out = {"clutches": list(self.clutches), "frames": [f.row(self.clutches) for f in self.frames],
                "summary": self.summary(), "resolved": [(f.motion, f.state, f.t) for f in self.resolved()]}
+        if self.has_rest:
+            out["rest_starts"] = REST_STARTS
         if self.holding_N:  # the slip model's
             out["holding_N"] = {m: dict(zip(self.clutches, h)) for m, h in self.holding_N}
             out["slips"] = self.slips()
@@ -183,30 +188,50 @@ def _work(curve: list[PathFrame]) -> float:
     return curve[-1].energy_J - rest
 
 
-def rest_frames(evaluator, design: np.ndarray, problem, motions=None, rest_motion=None) -> list[PathFrame]:
+def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: int = PATH_FRAMES,
+                sim_motions=None, first: dict | None = None) -> list[PathFrame]:
     """The rest pose (t = 0) of each motion of ``motions`` (default: the evaluator's), ON
-    (its activation set) and OFF, as PathFrames: the design's equilibrium there from the
-    evaluator's starts (:meth:`kgarment.design.Evaluator.equilibria`; a clutched state also
-    from the garment as worn OFF).  States of equal activation are solved once.
-    ``rest_motion``: the rest pose's kgarment.sim.Motion where the caller has it."""
+    (its activation set) and OFF, as PathFrames: the lowest-energy converged equilibrium of
+    the design there from the evaluator's starts (:meth:`kgarment.design.Evaluator.equilibria`:
+    the skin-tight garment, the fully reinforced one's equilibrium, a clutched state also the
+    garment as worn OFF) and, backwards, from each motion's first frame (t = 1 / ``frames``;
+    the garment at rest has several equilibria: on the two-motion sleeve at subdivision 1
+    the design OFF settled 4.4% lower coming back from flexion's first frame).  States of
+    equal activation are one state.  ``sim_motions``, ``first``: the frames' motions
+    (:func:`frame_motions` with ``rest``) and the first frames' equilibria {(motion,
+    state): (N, 3)} where the caller has them; else they are made (the first frame solved
+    from the skin-tight garment, as :func:`path_forces` starts)."""
     setup, model = evaluator.setup, evaluator.setup.model
     motions = evaluator.motion_names(motions)
-    if rest_motion is None:
-        rest_motion = frame_motions(problem, motions, 1, rest=True)[0][REST]
     design = np.asarray(design, dtype=np.float64)
+    if sim_motions is None or first is None:
+        sim_motions, index = frame_motions(problem, motions, frames, rest=True)
+        labels = {m: next(label for label, mm, _ in index if mm == m) for m in motions}
     acts = {(m, s): setup.on_activation(m) if s == "on" else np.zeros(setup.n_clutches)
             for m in motions for s in STATES}
+    if first is None:
+        keys = list(acts)
+        got = solve_states(model, design, [SimState.create(sim_motions[labels[m]], acts[(m, s)], name=f"{m}@1[{s}]")
+                                           for m, s in keys], options=setup.solver)
+        first = {k: r.x for k, r in zip(keys, got)}
     unique: dict[bytes, tuple] = {}
     for (m, s), a in acts.items():
         key = np.asarray(a, dtype=np.float64).tobytes()
         if key not in unique:  # keyed "@rest": the evaluator keeps equilibria per key (a motion may be "rest")
             label = f"on:{m}" if s == "on" else "off"  # "off": the clutched states' second start
-            unique[key] = (("@rest", label), SimState.create(rest_motion, a, name=f"rest[{label}]"))
-    solved = dict(zip(unique, evaluator.equilibria(design, list(unique.values()))))
+            unique[key] = (("@rest", label), SimState.create(sim_motions[REST], a, name=f"rest[{label}]"))
+    best = dict(zip(unique, evaluator.equilibria(design, list(unique.values()))))
+    keys = [k for k in acts if k in first]
+    bytes_of = {k: np.asarray(acts[k], dtype=np.float64).tobytes() for k in acts}
+    back = solve_states(model, design, [dataclasses.replace(unique[bytes_of[k]][1], name=f"rest<-{k[0]}[{k[1]}]")
+                                        for k in keys], warm_start=[first[k] for k in keys], options=setup.solver)
+    for k, r in zip(keys, back):
+        b = best[bytes_of[k]]
+        if r.converged and (not b.converged or r.total_energy < b.total_energy * (1 - 1e-9)):
+            best[bytes_of[k]] = r
     out = []
-    for (m, s), a in acts.items():
-        key = np.asarray(a, dtype=np.float64).tobytes()
-        r, st = solved[key], unique[key][1]
+    for (m, s) in acts:
+        r, st = best[bytes_of[(m, s)]], unique[bytes_of[(m, s)]][1]
         tension = clutch_tensions(model, design, st, r.x, setup.solver)
         out.append(PathFrame(m, s, 0.0, float(r.total_energy), tuple(float(v) for v in tension), bool(r.converged)))
     return out
@@ -256,7 +281,8 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         results.update(zip(keys, solved))
     resolved = _anchor_target(evaluator, design, motions, frames, by_motion, state, results)
     resolved |= _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results)
-    out = rest_frames(evaluator, design, problem, motions, sim_motions[REST])
+    out = rest_frames(evaluator, design, problem, motions, sim_motions=sim_motions,
+                      first={(m, s): results[(m, s, 0)].x for m in motions for s in STATES})
     for m in motions:
         for s in STATES:
             for i, (label, t) in enumerate(by_motion[m]):

@@ -10,8 +10,8 @@ set of clutches that resists it, and leave off the ones that would lock another 
   resistance most while it still does, every prefix kept), the sets found then evaluated
   in every motion;
 * per (motion, set): the garment's energy with that set ON (J, the total energy of the
-  equilibrium: what the wearer works against), the *resistance* (that energy minus all
-  OFF), its *fraction* of the all-ON resistance, and the tension of every clutch of the
+  equilibrium, what it holds at rest included), the *resistance* (that energy minus all
+  OFF: what the set adds to what the wearer works against), its *fraction* of the all-ON resistance, and the tension of every clutch of the
   set (N, :func:`kgarment.sim.clutch_tensions`).
 
 Per motion the plan names the set of highest resistance and the *smallest* set that keeps

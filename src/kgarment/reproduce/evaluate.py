@@ -120,17 +120,21 @@ class CachedEvaluator:
         return out, frames_json
 
     def _with_rest(self, design: np.ndarray, key: str, doc: dict) -> dict:
-        """A cached path JSON ``doc`` made before paths had their rest frame (t = 0): the
-        rest frames solved now (:func:`kgarment.design.path.rest_frames`, seconds) and
-        added, the summary's work taken from them, and stored under ``key`` again; the
-        frames of the motion (minutes) stay those cached."""
-        if any(f["t"] == 0.0 for f in doc["frames"]):
+        """A cached path JSON ``doc`` made before paths had their rest frame (t = 0), or
+        had it from fewer starts (``rest_starts`` below :data:`~kgarment.design.path.REST_STARTS`): the
+        rest frames solved now (:func:`kgarment.design.path.rest_frames`, the first frame
+        solved again for its backward start: seconds) and added, the summary's work taken
+        from them, and stored under ``key`` again; the frames of the motion (minutes) stay
+        those cached."""
+        from kgarment.design.path import REST_STARTS, PathReport, rest_frames
+
+        if doc.get("rest_starts") == REST_STARTS:
             return doc
-        from kgarment.design.path import PathReport, rest_frames
 
         motions = list(dict.fromkeys(f["motion"] for f in doc["frames"]))
-        rest = rest_frames(self.evaluator, np.asarray(design, dtype=np.float64), self.problem, motions)
-        out = PathReport.from_json(doc).with_frames(rest).to_json()
+        frames = round(1.0 / min(f["t"] for f in doc["frames"] if f["t"] > 0.0))
+        rest = rest_frames(self.evaluator, np.asarray(design, dtype=np.float64), self.problem, motions, frames)
+        out = PathReport.from_json(doc).with_rest(rest).to_json()
         if self.cache is not None:
             self.cache.put(key, out)
         return out
