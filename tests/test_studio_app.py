@@ -158,6 +158,44 @@ def test_simulate_compare_and_colour(studio):
     assert "A only" in legend and colors.shape == (st.n_faces, 3)
 
 
+def test_force_over_the_motion_on_the_painted_garment(studio):
+    """The page's force over the motion is ``evaluate --path``'s on the studio's own garment:
+    frames from rest ON and OFF, the work counted from rest, a picture and a table; with
+    the attachments painted away from the cuff, the frames hold the painted faces."""
+    from kgarment.design.path import PathReport
+
+    st = studio.state
+    paint(studio, faces=(100, 200, 300, 400, 500), radius=0.04)
+    with pytest.raises(KgarmentError, match="frames from rest"):
+        studio.sims.force_path(0)
+    job = studio.sims.force_path(2)
+    assert job.wait(300) and job.status == "done", job.message
+    label, revision, rep = studio.sims.path
+    assert isinstance(rep, PathReport) and label == "A" and revision == st.revision
+    assert sorted({(f.state, f.t) for f in rep.frames}) == [("off", 0.0), ("off", 0.5), ("off", 1.0),
+                                                             ("on", 0.0), ("on", 0.5), ("on", 1.0)]
+    row = rep.summary()[0]  # the first clutch; the work is per motion
+    on = {f.t: f.energy_J for f in rep.curve("arm_flexion.right", "on")}
+    assert row["work_on_J"] == pytest.approx(on[1.0] - on[0.0])
+    assert "Force over the motion, design A" in studio.panel.path_results.content
+    assert studio.panel.path_plot.image.shape[0] > 100 and studio.panel.path_plot.image.std() > 0
+    assert "path" in studio.sims.to_json()
+    paint(studio, faces=(50,))
+    assert "before the latest edits" in studio.panel.path_results.content
+
+
+def test_the_motion_frames_take_the_painted_attachments(studio):
+    from kgarment.design.frames import REST, frame_motions
+
+    st = studio.state
+    attached = np.zeros(st.n_faces, bool)
+    attached[:40] = True
+    motions, _ = frame_motions(st.problem, ["arm_flexion.right"], 1, rest=True, attached=attached)
+    assert set(motions[REST].attach_faces) == set(np.flatnonzero(attached))
+    with pytest.raises(KgarmentError, match="attachment flags"):
+        frame_motions(st.problem, ["arm_flexion.right"], 1, attached=attached[:-1])
+
+
 def test_one_evaluator_per_configuration(studio):
     """Edits of the design or the budget keep the evaluator (and the fully reinforced
     equilibria it holds); other attachments make another one. Evaluations solve to

@@ -3,6 +3,10 @@
 
 from __future__ import annotations
 
+import dataclasses
+
+import numpy as np
+
 from kgarment.body.motions import Motion as BodyMotion
 from kgarment.errors import KgarmentError
 from kgarment.sim import garment_motions
@@ -10,11 +14,13 @@ from kgarment.sim import garment_motions
 REST = "rest"  # the frame name of the rest pose (t = 0 of every motion)
 
 
-def frame_motions(problem, motions, frames: int, rest: bool = False) -> tuple[dict, list[tuple[str, str, float]]]:
+def frame_motions(problem, motions, frames: int, rest: bool = False,
+                  attached=None) -> tuple[dict, list[tuple[str, str, float]]]:
     """({frame name: kgarment.sim.Motion}, [(frame name, motion, t)]): ``problem``'s garment
     on its body posed at ``t = i / frames`` of each motion of ``motions`` (i = 1..frames);
     with ``rest`` also the rest pose, shared by every motion, as frame :data:`REST` (not in
-    the list)."""
+    the list).  ``attached`` : (m,) bool, the garment's attached faces where they are not
+    the problem's (the studio's painted attachments)."""
     from kgarment.body.anny_backend import load_anny_body
     from kgarment.problem import build_garment
 
@@ -35,4 +41,9 @@ def frame_motions(problem, motions, frames: int, rest: bool = False) -> tuple[di
         poses.append(BodyMotion(REST, (lib[motions[0]].at(0.0),)))
     body = load_anny_body(poses, problem.body.phenotype)
     garment = build_garment(problem, body)
+    if attached is not None:
+        mask = np.asarray(attached, dtype=bool)
+        if mask.shape != garment.attached.shape:
+            raise KgarmentError(f"{mask.size} attachment flags for a garment of {garment.attached.size} faces")
+        garment = dataclasses.replace(garment, attached=mask)
     return garment_motions(body, garment), index

@@ -189,7 +189,7 @@ def _work(curve: list[PathFrame]) -> float:
 
 
 def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: int = PATH_FRAMES,
-                sim_motions=None, first: dict | None = None) -> list[PathFrame]:
+                sim_motions=None, first: dict | None = None, attached=None) -> list[PathFrame]:
     """The rest pose (t = 0) of each motion of ``motions`` (default: the evaluator's), ON
     (its activation set) and OFF, as PathFrames: the lowest-energy converged equilibrium of
     the design there from the evaluator's starts (:meth:`kgarment.design.Evaluator.equilibria`:
@@ -200,12 +200,12 @@ def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: in
     equal activation are one state.  ``sim_motions``, ``first``: the frames' motions
     (:func:`frame_motions` with ``rest``) and the first frames' equilibria {(motion,
     state): (N, 3)} where the caller has them; else they are made (the first frame solved
-    from the skin-tight garment, as :func:`path_forces` starts)."""
+    from the skin-tight garment, as :func:`path_forces` starts); ``attached`` as there."""
     setup, model = evaluator.setup, evaluator.setup.model
     motions = evaluator.motion_names(motions)
     design = np.asarray(design, dtype=np.float64)
     if sim_motions is None or first is None:
-        sim_motions, index = frame_motions(problem, motions, frames, rest=True)
+        sim_motions, index = frame_motions(problem, motions, frames, rest=True, attached=attached)
         labels = {m: next(label for label, mm, _ in index if mm == m) for m in motions}
     acts = {(m, s): setup.on_activation(m) if s == "on" else np.zeros(setup.n_clutches)
             for m in motions for s in STATES}
@@ -238,12 +238,14 @@ def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: in
 
 
 def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: int = PATH_FRAMES,
-                report: Callable[[str], None] | None = None) -> PathReport:
+                report: Callable[[str], None] | None = None, attached=None) -> PathReport:
     """The :class:`PathReport` of ``design`` (m,) over ``frames`` frames of each motion of
     ``motions`` (default: the evaluator's), ON and OFF.
 
     evaluator : kgarment.design.Evaluator of ``problem`` (its model and solver options);
-    report : called with a line of progress before each frame.
+    report : called with a line of progress before each frame (it may raise
+    kgarment.errors.Cancelled to stop);  attached : (m,) bool, the garment's attached faces
+    where the evaluator's garment has others than the problem's (the studio's painting).
     """
     setup = evaluator.setup
     model = setup.model
@@ -251,7 +253,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         raise KgarmentError("--path: the force over the motion is solved on one body; a multi-body design's "
                             "wearers are evaluated at their target poses only (evaluate without --path)")
     motions = evaluator.motion_names(motions)
-    sim_motions, index = frame_motions(problem, motions, frames, rest=True)
+    sim_motions, index = frame_motions(problem, motions, frames, rest=True, attached=attached)
     first = next(iter(sim_motions.values()))
     if first.garment_x0.shape != (model.n_garment, 3):
         raise KgarmentError("the frames' garment differs from the run's (another body or garment?)")

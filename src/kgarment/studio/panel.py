@@ -17,12 +17,13 @@ import numpy as np
 from kgarment.constants import BUDGET_RANGE
 from kgarment.studio import view
 from kgarment.studio.edit import Editor
+from kgarment.studio.forces import force_image
 from kgarment.studio.optimise import Optimiser
 from kgarment.studio.page import Page
 from kgarment.studio.placement import LENGTH_RANGE, WIDTH_RANGE
 from kgarment.studio.runs import progress_image
 from kgarment.studio.settings import TOOLS
-from kgarment.studio.simulations import Simulations
+from kgarment.studio.simulations import MAX_PATH_FRAMES, Simulations
 
 NONE = "(none)"
 
@@ -51,6 +52,7 @@ class Panel:
 
     def __init__(self, studio: Host):
         self.s = studio
+        self._path_drawn = None  # the force path whose picture is shown
         gui = studio.server.gui
         gui.configure_theme(control_width="large")
         self.status = gui.add_markdown("")
@@ -138,6 +140,10 @@ class Panel:
         self._button(gui, "Load design B", lambda: sims.load_b(self.b_source.value))
         self.sim_status = gui.add_markdown("")
         self.results = gui.add_markdown("")
+        self.path_frames = gui.add_number("Frames from rest", 5, min=1, max=MAX_PATH_FRAMES, step=1)
+        self._button(gui, "Force over the motion of A", lambda: sims.force_path(int(self.path_frames.value)))
+        self.path_results = gui.add_markdown("")
+        self.path_plot = gui.add_image(np.full((30, 52, 3), 255, np.uint8), label="Clutch tension from rest")
 
     def _optimise_tab(self, gui) -> None:
         o = self.s.optimiser
@@ -277,7 +283,12 @@ class Panel:
         (self.sim_status if job == "simulation" else self.opt_status).content = text
 
     def show_results(self) -> None:
-        self.results.content = self.s.sims.table()
+        sims = self.s.sims
+        self.results.content = sims.table()
+        self.path_results.content = sims.path_table()
+        if sims.path is not None and sims.path[2] is not self._path_drawn:
+            self.path_plot.image = force_image(sims.path[2])
+            self._path_drawn = sims.path[2]
 
     def show_run(self) -> None:
         o = self.s.optimiser

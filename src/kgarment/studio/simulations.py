@@ -25,9 +25,11 @@ import numpy as np
 from kgarment.body import Body
 from kgarment.clutch import ClutchSpec, ClutchStrip
 from kgarment.design import Evaluator, design_values, load_design
-from kgarment.errors import KgarmentError
+from kgarment.design.path import PATH_FRAMES, PathReport, path_forces
+from kgarment.errors import Cancelled, KgarmentError
 from kgarment.garment import Garment
 from kgarment.problem import Problem
+from kgarment.studio.forces import force_table
 from kgarment.studio.jobs import Job
 from kgarment.studio.page import Page
 from kgarment.studio.results import SimResult, results_table
@@ -37,6 +39,7 @@ from kgarment.studio.state import StudioState
 
 log = logging.getLogger(__name__)
 EVALUATORS_KEPT = 8  # configurations whose fully reinforced equilibria are kept
+MAX_PATH_FRAMES = 40  # frames from rest the page allows (each one solve per motion and state)
 
 
 @dataclass(frozen=True)
@@ -96,6 +99,7 @@ class Simulations:
         self.page = page
         self.a: SimResult | None = None
         self.b: SimResult | None = None
+        self.path: tuple[str, int, PathReport] | None = None  # (label, revision, report): the last force path
         self.design_b = design_b
         self.job: Job[SimResult] | None = None
         self._kept = kept
@@ -108,7 +112,7 @@ class Simulations:
 
     def reset(self, design_b: DesignB | None = None) -> None:
         """Forget results and evaluators (another problem was opened)."""
-        self.a = self.b = None
+        self.a = self.b = self.path = None
         self.design_b = design_b
         with self._evaluators_lock:
             self._evaluators.clear()
@@ -136,8 +140,11 @@ class Simulations:
         return results_table(self.a, self.b, self.stale())
 
     def to_json(self) -> dict:
-        """The results as a session saves them."""
-        return {k: e.to_json() for k, e in (("A", self.a), ("B", self.b)) if e is not None}
+        """The results as a session saves them (the force path of A under "path")."""
+        out = {k: e.to_json() for k, e in (("A", self.a), ("B", self.b)) if e is not None}
+        if self.path is not None:
+            out["path"] = {"design": self.path[0], "revision": self.path[1], **self.path[2].to_json()}
+        return out
 
     # ----- actions ----------------------------------------------------------------------
     def simulate(self, which: str = "A", motions: Sequence[str] | None = None) -> Job[SimResult]:
@@ -177,6 +184,59 @@ class Simulations:
         page.say(f"simulating design {label} on {', '.join(motions)} ...")
         self.job = job.start()
         return job
+
+    def force_path(self, frames: int = PATH_FRAMES, motions: Sequence[str] | None = None) -> Job[PathReport]:
+        """The force over the motion of design A (``kgarment evaluate --path``: ``frames``
+        frames from rest to each target pose of ``motions``, default the ticked ones, ON and
+        OFF, on the studio's garment and attachments) in the background; returns the Job.
+        Stopped between frames by Stop simulation."""
+        page = self.page
+        if self.running:
+            raise KgarmentError("a simulation is running; wait for it or press Stop simulation")
+        frames = int(frames)
+        if not 1 <= frames <= MAX_PATH_FRAMES:
+            raise KgarmentError(f"frames from rest: {frames}; give 1 to {MAX_PATH_FRAMES}")
+        motions = list(motions or page.settings.sim_motions)
+        if not motions:
+            raise KgarmentError("tick at least one motion to simulate")
+        st = page.state
+        with st.lock:
+            inputs = SimInputs.of(st)
+            design = st.design.copy()
+            revision = st.revision
+        if inputs.problem.body.model != "anny":
+            raise KgarmentError("the force over the motion needs a posable body (body model 'anny')")
+
+        def work(job: Job[PathReport]) -> PathReport:
+            def report(text: str) -> None:
+                if job.cancelled:
+                    raise Cancelled("force over the motion stopped")
+                job.report(f"force over the motion of A: {text}")
+
+            ev = self.evaluator(inputs)
+            return path_forces(ev, design_values(design), inputs.problem, motions, frames, report=report,
+                               attached=inputs.garment.attached)
+
+        def done(result: PathReport) -> None:
+            self.path = ("A", revision, result)
+            page.say(f"force over the motion of design A ({frames} frames from rest) in "
+                     f"{time.time() - job.started:.0f} s", notify=True)
+            page.refresh(results=True)
+
+        job = Job("simulation", work, on_done=done, on_error=lambda m: page.say(m, error=True),
+                  on_report=lambda text: page.show_progress("simulation", text),
+                  on_cancel=lambda: page.say("force over the motion stopped", notify=True))
+        page.say(f"force over the motion of design A on {', '.join(motions)}, {frames} frames ...")
+        self.job = job.start()
+        return job
+
+    def path_table(self) -> str:
+        """Markdown of the last force path (marked when design A was edited since)."""
+        if self.path is None:
+            return ""
+        label, revision, rep = self.path
+        stale = " (before the latest edits)" if revision != self.page.state.revision else ""
+        return force_table(rep, label + stale)
 
     def stop(self) -> None:
         if not self.running:
