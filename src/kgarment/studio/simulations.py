@@ -219,8 +219,8 @@ class Simulations:
 
         def done(result: PathReport) -> None:
             self.path = ("A", revision, result)
-            page.say(f"force over the motion of design A ({frames} frames from rest) in "
-                     f"{time.time() - job.started:.0f} s", notify=True)
+            page.say(f"force over the motion of design A ({frames} frame{'s' if frames != 1 else ''} from rest) "
+                     f"in {time.time() - job.started:.0f} s", notify=True)
             page.refresh(results=True)
 
         job = Job("simulation", work, on_done=done, on_error=lambda m: page.say(m, error=True),
