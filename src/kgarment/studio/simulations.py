@@ -146,23 +146,27 @@ class Simulations:
             out["path"] = {"design": self.path[0], "revision": self.path[1], **self.path[2].to_json()}
         return out
 
+    def _snapshot(self, which: str, motions: Sequence[str] | None):
+        """(motions, SimInputs, design (m,) bool, revision) for a simulation of design
+        ``which`` about to start; a one-line error while one runs or with no motion."""
+        if self.running:
+            raise KgarmentError("a simulation is running; wait for it or press Stop simulation")
+        motions = list(motions or self.page.settings.sim_motions)
+        if not motions:
+            raise KgarmentError("tick at least one motion to simulate")
+        st = self.page.state
+        with st.lock:
+            design = st.design.copy() if which == "A" else self.design_b.design.copy()
+            return motions, SimInputs.of(st), design, st.revision
+
     # ----- actions ----------------------------------------------------------------------
     def simulate(self, which: str = "A", motions: Sequence[str] | None = None) -> Job[SimResult]:
         """Simulate design A (the edited one) or B on ``motions`` (default: the ticked ones)
         in the background; returns the Job."""
         page = self.page
-        if self.running:
-            raise KgarmentError("a simulation is running; wait for it or press Stop simulation")
         if which == "B" and self.design_b is None:
             raise KgarmentError("there is no design B yet (pin A as B, or load one)")
-        motions = list(motions or page.settings.sim_motions)
-        if not motions:
-            raise KgarmentError("tick at least one motion to simulate")
-        st = page.state
-        with st.lock:
-            inputs = SimInputs.of(st)
-            design = st.design.copy() if which == "A" else self.design_b.design.copy()
-            revision = st.revision
+        motions, inputs, design, revision = self._snapshot(which, motions)
         label = "A" if which == "A" else f"B ({self.design_b.label})"
 
         def work(job: Job[SimResult]) -> SimResult:
@@ -191,19 +195,10 @@ class Simulations:
         OFF, on the studio's garment and attachments) in the background; returns the Job.
         Stopped between frames by Stop simulation."""
         page = self.page
-        if self.running:
-            raise KgarmentError("a simulation is running; wait for it or press Stop simulation")
         frames = int(frames)
         if not 1 <= frames <= MAX_PATH_FRAMES:
             raise KgarmentError(f"frames from rest: {frames}; give 1 to {MAX_PATH_FRAMES}")
-        motions = list(motions or page.settings.sim_motions)
-        if not motions:
-            raise KgarmentError("tick at least one motion to simulate")
-        st = page.state
-        with st.lock:
-            inputs = SimInputs.of(st)
-            design = st.design.copy()
-            revision = st.revision
+        motions, inputs, design, revision = self._snapshot("A", motions)
         if inputs.problem.body.model != "anny":
             raise KgarmentError("the force over the motion needs a posable body (body model 'anny')")
 
