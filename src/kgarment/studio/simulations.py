@@ -159,6 +159,17 @@ class Simulations:
             design = st.design.copy() if which == "A" else self.design_b.design.copy()
             return motions, SimInputs.of(st), design, st.revision
 
+    def _start(self, work, done, stopped: str, starting: str) -> Job:
+        """Start the simulation job ``work`` (then ``done(result)``), its progress, errors
+        and stop shown in the page."""
+        page = self.page
+        job = Job("simulation", work, on_done=done, on_error=lambda m: page.say(m, error=True),
+                  on_report=lambda text: page.show_progress("simulation", text),
+                  on_cancel=lambda: page.say(stopped, notify=True))
+        page.say(starting)
+        self.job = job.start()
+        return job
+
     # ----- actions ----------------------------------------------------------------------
     def simulate(self, which: str = "A", motions: Sequence[str] | None = None) -> Job[SimResult]:
         """Simulate design A (the edited one) or B on ``motions`` (default: the ticked ones)
@@ -178,16 +189,12 @@ class Simulations:
                 self.a = result
             else:
                 self.b = result
-            page.say(f"simulated design {label} on {', '.join(motions)} in {time.time() - job.started:.0f} s",
+            page.say(f"simulated design {label} on {', '.join(motions)} in {time.time() - t0:.0f} s",
                      notify=True)
             page.refresh(results=True, scene=True)
 
-        job = Job("simulation", work, on_done=done, on_error=lambda m: page.say(m, error=True),
-                  on_report=lambda text: page.show_progress("simulation", text),
-                  on_cancel=lambda: page.say("simulation stopped", notify=True))
-        page.say(f"simulating design {label} on {', '.join(motions)} ...")
-        self.job = job.start()
-        return job
+        t0 = time.time()
+        return self._start(work, done, "simulation stopped", f"simulating design {label} on {', '.join(motions)} ...")
 
     def force_path(self, frames: int = PATH_FRAMES, motions: Sequence[str] | None = None) -> Job[PathReport]:
         """The force over the motion of design A (``kgarment evaluate --path``: ``frames``
@@ -215,15 +222,12 @@ class Simulations:
         def done(result: PathReport) -> None:
             self.path = ("A", revision, result)
             page.say(f"force over the motion of design A ({frames} frame{'s' if frames != 1 else ''} from rest) "
-                     f"in {time.time() - job.started:.0f} s", notify=True)
+                     f"in {time.time() - t0:.0f} s", notify=True)
             page.refresh(results=True)
 
-        job = Job("simulation", work, on_done=done, on_error=lambda m: page.say(m, error=True),
-                  on_report=lambda text: page.show_progress("simulation", text),
-                  on_cancel=lambda: page.say("force over the motion stopped", notify=True))
-        page.say(f"force over the motion of design A on {', '.join(motions)}, {frames} frames ...")
-        self.job = job.start()
-        return job
+        t0 = time.time()
+        return self._start(work, done, "force over the motion stopped",
+                           f"force over the motion of design A on {', '.join(motions)}, {frames} frames ...")
 
     def path_table(self) -> str:
         """Markdown of the last force path (marked when design A was edited since)."""
