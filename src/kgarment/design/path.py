@@ -119,10 +119,14 @@ class PathReport:
                 t_off = np.array([f.tension_N[k] for f in off])
                 out.append({"motion": m, "clutch": c, "peak_on_N": float(t_on.max()),
                             "mean_on_N": float(_moving(on, k).mean()), "peak_off_N": float(t_off.max()),
-                            "mean_off_N": float(_moving(off, k).mean()), "work_on_J": _work(on),
-                            "work_off_J": _work(off), "energy_on_J": on[-1].energy_J,
+                            "mean_off_N": float(_moving(off, k).mean()), "work_on_J": self.work(m, "on"),
+                            "work_off_J": self.work(m, "off"), "energy_on_J": on[-1].energy_J,
                             "energy_off_J": off[-1].energy_J})
         return out
+
+    def work(self, motion: str, state: str) -> float:
+        """The work over ``motion`` in ``state`` (J, :func:`work_from_rest`)."""
+        return work_from_rest([(f.t, f.energy_J) for f in self.curve(motion, state)])
 
     def with_rest(self, frames) -> PathReport:
         """This report with its rest frames (t = 0) replaced by ``frames`` (:func:`rest_frames`)."""
@@ -176,16 +180,19 @@ class PathReport:
         return "\n".join(lines)
 
 
+def work_from_rest(points: list[tuple[float, float]]) -> float:
+    """The work over a motion from its (t, garment energy J) frames sorted by t: the energy
+    at the end less at the rest frame (t = 0); the energy at the end where there is no rest
+    frame (a report made before paths had one); 0 without frames."""
+    if not points:
+        return 0.0
+    rest = points[0][1] if points[0][0] == 0.0 else 0.0
+    return points[-1][1] - rest
+
+
 def _moving(curve: list[PathFrame], k: int) -> np.ndarray:
     """Clutch ``k``'s tension (N) in the frames of ``curve`` after rest."""
     return np.array([f.tension_N[k] for f in curve if f.t > 0.0] or [0.0])
-
-
-def _work(curve: list[PathFrame]) -> float:
-    """The garment's energy at the end of ``curve`` less at its rest frame (J; the energy
-    at the end where the curve has no rest frame)."""
-    rest = curve[0].energy_J if curve and curve[0].t == 0.0 else 0.0
-    return curve[-1].energy_J - rest
 
 
 def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: int = PATH_FRAMES,
@@ -214,15 +221,14 @@ def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: in
         got = solve_states(model, design, [SimState.create(sim_motions[labels[m]], acts[(m, s)], name=f"{m}@1[{s}]")
                                            for m, s in keys], options=setup.solver)
         first = {k: r.x for k, r in zip(keys, got)}
+    bytes_of = {k: np.asarray(a, dtype=np.float64).tobytes() for k, a in acts.items()}
     unique: dict[bytes, tuple] = {}
     for (m, s), a in acts.items():
-        key = np.asarray(a, dtype=np.float64).tobytes()
-        if key not in unique:  # keyed "@rest": the evaluator keeps equilibria per key (a motion may be "rest")
+        if bytes_of[(m, s)] not in unique:  # keyed "@rest": the evaluator keeps equilibria per key (a motion may be "rest")
             label = f"on:{m}" if s == "on" else "off"  # "off": the clutched states' second start
-            unique[key] = (("@rest", label), SimState.create(sim_motions[REST], a, name=f"rest[{label}]"))
+            unique[bytes_of[(m, s)]] = (("@rest", label), SimState.create(sim_motions[REST], a, name=f"rest[{label}]"))
     best = dict(zip(unique, evaluator.equilibria(design, list(unique.values()))))
     keys = [k for k in acts if k in first]
-    bytes_of = {k: np.asarray(acts[k], dtype=np.float64).tobytes() for k in acts}
     back = solve_states(model, design, [dataclasses.replace(unique[bytes_of[k]][1], name=f"rest<-{k[0]}[{k[1]}]")
                                         for k in keys], warm_start=[first[k] for k in keys], options=setup.solver)
     for k, r in zip(keys, back):
@@ -417,6 +423,25 @@ def _jump_repairs(m, s, frames, by_motion, state, results, replaced):
             return
 
 
+def draw_tensions(ax, report: PathReport, motion: str) -> tuple[list[PathFrame], list[PathFrame]]:
+    """Draw on matplotlib axes ``ax`` each clutch's tension against motion progress in
+    ``motion``, ON solid and OFF dashed, and a red line at each frame re-solved; returns
+    the (ON, OFF) curves drawn (a report made before paths had a rest frame: from zero)."""
+    on, off = report.curve(motion, "on"), report.curve(motion, "off")
+    if not report.has_rest:  # an older report: nothing known at rest, drawn from zero
+        on, off = ([PathFrame(motion, s, 0.0, 0.0, (0.0,) * len(report.clutches), True)] + c
+                   for s, c in (("on", on), ("off", off)))
+    t = [f.t for f in on]
+    for k, c in enumerate(report.clutches):
+        ax.plot(t, [f.tension_N[k] for f in on], color=f"C{k % 10}", lw=1.6, label=f"{c} ON")
+        ax.plot(t, [f.tension_N[k] for f in off], color=f"C{k % 10}", lw=1.0, ls="--", label=f"{c} OFF")
+    for f in report.resolved():
+        if f.motion == motion:
+            ax.axvline(f.t, color="#e76f51", lw=0.6, alpha=0.6)
+    ax.grid(alpha=0.3)
+    return on, off
+
+
 def path_plot(report: PathReport, path, title: str = "") -> Path:
     """Force against motion progress like the paper's force figure: per motion, each
     clutch's tension ON (solid) and OFF (dashed), and the garment energy ON / OFF (right
@@ -428,31 +453,19 @@ def path_plot(report: PathReport, path, title: str = "") -> Path:
 
     motions = report.motions
     fig, axes = plt.subplots(1, len(motions), figsize=(max(3.6 * len(motions), 4.8), 3.4), dpi=100, squeeze=False)
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for ax, m in zip(axes[0], motions):
-        on, off = report.curve(m, "on"), report.curve(m, "off")
-        if not report.has_rest:  # an older report: nothing known at rest, drawn from zero
-            on, off = ([PathFrame(m, s, 0.0, 0.0, (0.0,) * len(report.clutches), True)] + c
-                       for s, c in (("on", on), ("off", off)))
+        on, off = draw_tensions(ax, report, m)
         t = [f.t for f in on]
-        for k, c in enumerate(report.clutches):
-            col = colors[k % len(colors)]
-            ax.plot(t, [f.tension_N[k] for f in on], color=col, lw=1.6, label=f"{c} ON")
-            ax.plot(t, [f.tension_N[k] for f in off], color=col, lw=1.0, ls="--", label=f"{c} OFF")
         ax.set_xlabel("motion progress")
         ax.set_title(m, fontsize=9)
-        ax.grid(alpha=0.3)
         e = ax.twinx()
         e.plot(t, [f.energy_J for f in on], color="k", lw=0.8, alpha=0.6)
         e.plot(t, [f.energy_J for f in off], color="k", lw=0.8, ls=":", alpha=0.6)
         e.set_ylabel("garment energy (J), ON solid / OFF dotted", fontsize=7)
-        for f in report.resolved():
-            if f.motion == m:
-                ax.axvline(f.t, color="#e76f51", lw=0.6, alpha=0.6)
         for mm, hold in report.holding_N:  # each clutch's holding force, where it is reached or near
             for k, h in enumerate(hold if mm == m else ()):
                 if 0 < h < 2 * max((f.tension_N[k] for f in on), default=0.0):
-                    ax.axhline(h, color=colors[k % len(colors)], lw=0.8, ls=":", alpha=0.8)
+                    ax.axhline(h, color=f"C{k % 10}", lw=0.8, ls=":", alpha=0.8)
     axes[0][0].set_ylabel("clutch tension (N)")
     axes[0][0].legend(fontsize=6, loc="upper left")
     if title:

@@ -96,16 +96,15 @@ def force_stats(path_doc: dict, motion: str) -> dict:
     """Peak (over the frames) and mean (over the frames after rest) of the largest clutch
     tension ON and OFF (N), and the work against the garment over the motion ON and OFF (J:
     its energy at the target less at rest, :meth:`kgarment.design.path.PathReport.summary`)."""
+    from kgarment.design.path import work_from_rest
+
     out = {}
     for s in ("on", "off"):
         t, f = force_curves(path_doc, motion, s)
         moving = [v for a, v in zip(t, f) if a > 0.0]
-        frames = sorted((x for x in path_doc["frames"] if x["motion"] == motion and x["state"] == s),
-                        key=lambda x: x["t"])
-        rest = frames[0]["energy_J"] if frames and frames[0]["t"] == 0.0 else 0.0
-        out[s] = {"peak": max(f), "mean": sum(moving) / max(len(moving), 1),
-                  "work": frames[-1]["energy_J"] - rest if frames else 0.0,
-                  "energy": frames[-1]["energy_J"] if frames else 0.0}
+        energy = sorted((x["t"], x["energy_J"]) for x in path_doc["frames"] if x["motion"] == motion and x["state"] == s)
+        out[s] = {"peak": max(f), "mean": sum(moving) / max(len(moving), 1), "work": work_from_rest(energy),
+                  "energy": energy[-1][1] if energy else 0.0}
     return out
 
 

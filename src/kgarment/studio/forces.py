@@ -7,7 +7,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from kgarment.design.path import PathReport
+from kgarment.design.path import PathReport, draw_tensions
 
 
 def force_image(report: PathReport, width_px: int = 420, row_px: int = 190) -> np.ndarray:
@@ -18,20 +18,12 @@ def force_image(report: PathReport, width_px: int = 420, row_px: int = 190) -> n
     dpi = 100
     fig = Figure(figsize=(width_px / dpi, row_px * max(len(motions), 1) / dpi), dpi=dpi)
     canvas = FigureCanvasAgg(fig)
-    colors = [f"C{i}" for i in range(10)]
     for i, m in enumerate(motions):
         ax = fig.add_subplot(len(motions), 1, i + 1)
-        on, off = report.curve(m, "on"), report.curve(m, "off")
-        for k, c in enumerate(report.clutches):
-            ax.plot([f.t for f in on], [f.tension_N[k] for f in on], "-", color=colors[k % 10], label=f"{c} ON")
-            ax.plot([f.t for f in off], [f.tension_N[k] for f in off], "--", color=colors[k % 10], lw=0.8)
-        for f in report.resolved():
-            if f.motion == m:
-                ax.axvline(f.t, color="#e76f51", lw=0.6, alpha=0.6)
+        draw_tensions(ax, report, m)
         ax.set_title(m, fontsize=8)
         ax.set_ylabel("tension (N)", fontsize=7)
         ax.tick_params(labelsize=7)
-        ax.grid(alpha=0.3)
         if i == 0:
             ax.legend(fontsize=6, loc="upper left")
     if fig.axes:
