@@ -298,6 +298,48 @@ def test_workers_inherit_the_objects_of_the_call_that_forks_them():
     assert out["carried"] == [False] * 8 + [True] * 4
 
 
+THREAD_SCRIPT = """
+import json, sys, threading
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from test_sim_solver import tube_scene
+from kgarment.sim import SimState, SolverOptions, parallel, solve_states
+
+model, motion = tube_scene("reference")
+states = [SimState.create(motion, [g], name=n) for g, n in ((0.0, "off"), (1.0, "on"))]
+d = np.full(model.n_faces, 0.001)
+serial = solve_states(model, d, states)
+out = {}
+def job():  # like the studio's: the pool is created from a job thread
+    par = solve_states(model, d, states, options=SolverOptions(workers=2))
+    out["same"] = all(np.array_equal(a.x, b.x) and a.energy == b.energy for a, b in zip(serial, par))
+    out["method"] = parallel._POOLS[2]._mp_context.get_start_method()
+t = threading.Thread(target=job)
+t.start(); t.join()
+print(json.dumps(out))
+"""
+
+
+def test_a_pool_created_from_a_thread_is_not_forked():
+    """A pool first needed in a thread other than the main one (the studio's jobs) starts
+    its workers by forkserver, not fork (a fork copies the other threads' held locks);
+    the results are bit-identical to this process's, and the process exits (the
+    subprocess's timeout would catch a hang at exit)."""
+    import json
+    import multiprocessing as mp
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    if "forkserver" not in mp.get_all_start_methods():
+        pytest.skip("no forkserver on this platform")
+    r = subprocess.run([sys.executable, "-c", THREAD_SCRIPT, str(Path(__file__).parent)], check=False,
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out == {"same": True, "method": "forkserver"}
+
+
 def _blas_thread_counts():
     from threadpoolctl import threadpool_info
 

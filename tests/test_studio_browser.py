@@ -20,7 +20,7 @@ ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-f
 
 pytestmark = [
     pytest.mark.skipif(not os.path.exists(CHROMIUM), reason=f"no {CHROMIUM} (apt-get install chromium chromium-driver)"),
-    pytest.mark.timeout(300),  # 86 s alone beside a design run; 180 s was hit with three jobs on 2 cores
+    pytest.mark.timeout(420),  # 86 s alone beside a design run (+ ~15 s for the force path); 180 s was hit with three jobs on 2 cores
 ]
 
 
@@ -200,12 +200,23 @@ def test_place_paint_save_in_the_browser(studio, tmp_path):
             page.screenshot(path=shots / "3_activation_set.png")
             mark('set')
 
+            # the force over the motion of design A, from its button (one frame from rest: the
+            # rest pose and the target)
+            fill(page, "Frames from rest", 1)
+            page.get_by_role("button", name="Force over the motion of A").click()
+            wait_for(lambda: studio.sims.path is not None, timeout=150, what="the force over the motion")
+            assert sorted({f.t for f in studio.sims.path[2].frames}) == [0.0, 1.0]
+            wait_for(lambda: "Force over the motion, design A" in studio.panel.path_results.content,
+                     what="its table")
+            page.screenshot(path=shots / "4_force_over_the_motion.png")
+            mark('force path')
+
             # save from the File tab
             page.get_by_role("tab", name="File").click()
             page.get_by_role("button", name="Save session").click()
             wait_for(lambda: (tmp_path / "session" / "studio.toml").is_file(), what="the saved session")
             page.get_by_text("session saved to").first.wait_for(timeout=10000)
-            page.screenshot(path=shots / "4_saved.png")
+            page.screenshot(path=shots / "5_saved.png")
             mark('saved')
 
             # exports: a path that leaves the studio's folder is refused; a name lands in RUNS/exports

@@ -19,7 +19,11 @@ forked (POSIX): "spawn" would re-run an unguarded calling script in every worker
 exception is a parent that has itself run a CHOLMOD supernodal factorisation
 (``factorization="supernodal"``): it runs GNU OpenMP regions, and a forked child of such
 a process hangs in its first own region (measured), so that parent's pool uses
-"forkserver" (whose workers inherit nothing).  MKL PARDISO runs sequentially
+"forkserver" (whose workers inherit nothing).  So does a pool created from a thread other
+than the main one (the studio's jobs, beside its server's and the browser's threads): a
+fork copies whatever locks those threads hold at that moment, and a worker that waits on
+one never takes a task (seen: the studio's force over the motion, then a process that
+hung at exit waiting for its workers).  MKL PARDISO runs sequentially
 (``pardiso``), so forking after it is safe.  Workers run torch and BLAS single-threaded and
 ignore Ctrl-C (the main process handles it).
 """
@@ -51,8 +55,9 @@ def _pool(workers: int, objects=()) -> ProcessPoolExecutor:
     if pool is None:
         methods = mp.get_all_start_methods()
         method = "fork" if "fork" in methods else "spawn"
-        if SparseCholesky.openmp_used and "forkserver" in methods:
-            method = "forkserver"  # a fork would inherit OpenMP's threads as dead (assembly doc)
+        threaded = threading.current_thread() is not threading.main_thread()
+        if (SparseCholesky.openmp_used or threaded) and "forkserver" in methods:
+            method = "forkserver"  # a fork would inherit OpenMP's threads, or other threads' locks, as dead
         if method == "fork":  # every worker forks at the first submit, after this (concurrent.futures)
             _REGISTRY.update((id(obj), obj) for obj in objects)  # held for the pool's life: the ids stay theirs
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(method), initializer=_init_worker)

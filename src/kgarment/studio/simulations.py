@@ -163,9 +163,16 @@ class Simulations:
         """Start the simulation job ``work`` (then ``done(result)``), its progress, errors
         and stop shown in the page."""
         page = self.page
-        job = Job("simulation", work, on_done=done, on_error=lambda m: page.say(m, error=True),
+
+        def ended(then):  # the job's last progress line goes; the page says how it ended
+            def call(*args):
+                page.show_progress("simulation", "")
+                then(*args)
+            return call
+
+        job = Job("simulation", work, on_done=ended(done), on_error=ended(lambda m: page.say(m, error=True)),
                   on_report=lambda text: page.show_progress("simulation", text),
-                  on_cancel=lambda: page.say(stopped, notify=True))
+                  on_cancel=ended(lambda: page.say(stopped, notify=True)))
         page.say(starting)
         self.job = job.start()
         return job
