@@ -322,3 +322,28 @@ def test_an_unknown_clutch_name(toml, message, tmp_path, monkeypatch, anny_body)
     rc, _, err = run_cli(["design", "p.toml", "--out", "run"])
     assert_one_line(rc, err, message)
     assert not (tmp_path / "run").exists()
+
+
+def test_a_run_designed_under_another_simulation_model_is_not_resumed(tmp_path, monkeypatch):
+    """A checkpoint written before the simulation model's version was recorded (model 1:
+    the garment started on the body's mesh) is not resumed under model 2: one line, exit
+    2, the folder untouched; a checkpoint of this model passes the check."""
+    from kgarment.constants import SIM_MODEL
+    from kgarment.design.loop import LoopState
+    from kgarment.design.run import check_model, save_checkpoint
+
+    monkeypatch.chdir(tmp_path)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "problem.toml").write_text('[motions]\nuse = ["arms_raise"]\n')
+    (run / "problem.txt").write_text("")
+    save_checkpoint(run, LoopState(0, np.ones(40), 1.0, None, {}, (), {}, {}, (), ()))
+    check_model(run)
+    with np.load(run / "checkpoint.npz") as z:
+        assert int(z["sim_model"]) == SIM_MODEL
+        old = {k: z[k] for k in z.files if k != "sim_model"}
+    np.savez(run / "checkpoint.npz", **old)
+    content = (run / "checkpoint.npz").read_bytes()
+    rc, _, err = run_cli(["design", "--resume", "run"])
+    assert_one_line(rc, err, f"was designed with simulation model 1 and this kgarment simulates model {SIM_MODEL}")
+    assert (run / "checkpoint.npz").read_bytes() == content

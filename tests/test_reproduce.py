@@ -187,6 +187,7 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
 def test_a_reproduction_folder_keeps_only_its_own_resolution_and_preset(tmp_path):
     """data.json accumulates experiments across invocations, but never mixes resolutions or
     material presets in one report."""
+    from kgarment.constants import SIM_MODEL
     from kgarment.errors import KgarmentError
     from kgarment.reproduce.catalog import RESOLUTIONS
     from kgarment.reproduce.pipeline import previous_results, run_again
@@ -194,9 +195,15 @@ def test_a_reproduction_folder_keeps_only_its_own_resolution_and_preset(tmp_path
     tiny = RESOLUTIONS["tiny"]
     assert previous_results(tmp_path, tiny, None) == {}
     entry = {"name": "arm_extension", "preset": "paper", "clutch_model": "locked"}
-    doc = {"resolution": {"name": "tiny"}, "experiments": {"arm_extension": entry, "arm_flexion": dict(entry)}}
+    doc = {"resolution": {"name": "tiny"}, "sim_model": SIM_MODEL,
+           "experiments": {"arm_extension": entry, "arm_flexion": dict(entry)}}
     (tmp_path / "data.json").write_text(json.dumps(doc))
     assert previous_results(tmp_path, tiny, {"preset": None}) == doc["experiments"]
+    # nor simulation models: a report written before SIM_MODEL was recorded is model 1
+    (tmp_path / "data.json").write_text(json.dumps({k: v for k, v in doc.items() if k != "sim_model"}))
+    with pytest.raises(KgarmentError, match=f"made with simulation model 1 and this kgarment simulates model {SIM_MODEL}"):
+        previous_results(tmp_path, tiny, {"preset": None})
+    (tmp_path / "data.json").write_text(json.dumps(doc))
     with pytest.raises(KgarmentError, match="preset paper, clutch model locked, not preset reference, clutch model locked;"):
         previous_results(tmp_path, tiny, {"preset": "reference"})
     # buckling clutches are another reproduction too (their designs and energies differ)

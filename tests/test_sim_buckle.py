@@ -112,8 +112,10 @@ def test_buckle_on_the_command_line():
 def test_the_reference_is_the_stabler_of_its_two_starts(anny_body):
     """rho's denominator, the fully reinforced garment ON, is solved from the skin-tight
     garment and from its OFF equilibrium (the clutches switched on in the garment as worn),
-    and the lower-energy one is kept. With buckling strips the two differ on the main job's
-    shirt in arms forward (2026-11-26: 50.0 J against 39.8 J of total energy)."""
+    and the lower-energy one is kept. With buckling strips the two differed on the main job's
+    shirt in arms forward while the skin-tight start lay on the body's mesh (2026-11-26: 50.0 J
+    against 39.8 J of total energy); with it on the contact surface (SIM_MODEL 2) they end
+    within 0.1% (30.73 and 30.74 J)."""
     from kgarment.design import Evaluator
     from kgarment.problem import example_path, load_problem, override
 
@@ -126,8 +128,10 @@ def test_the_reference_is_the_stabler_of_its_two_starts(anny_body):
     full = np.ones(ev.n_faces)
     (skin,) = ev.setup.solve(full, [on])
     (worn,) = ev.setup.solve(full, [on], warm_start=[ref_off.x])
-    assert skin.converged and worn.converged and worn.total_energy < 0.98 * skin.total_energy
-    assert ref_on.total_energy == worn.total_energy and np.array_equal(ref_on.x, worn.x)
+    assert skin.converged and worn.converged
+    # no higher than either start's equilibrium (these solves stop at the design tolerance,
+    # the reference at the evaluation's: 1e-3 of the energy covers the difference)
+    assert ref_on.total_energy <= min(skin.total_energy, worn.total_energy) * (1 + 1e-3)
     # asked for the ON state alone (the studio, one state at a time), the same equilibrium
     (alone,) = Evaluator.from_problem(p, body=anny_body).reference([(("arms_forward", "on"), on)])
     assert alone.total_energy == pytest.approx(ref_on.total_energy, rel=1e-9)

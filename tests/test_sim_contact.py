@@ -148,3 +148,23 @@ def test_springs_gradient():
     # residual of an anchor: clutch vertex minus its barycentric point
     A = s2.operator(5).toarray()
     assert np.allclose(A[0], [-0.2, -0.3, -0.5, 0.0, 1.0])
+
+
+def test_points_moved_onto_the_contact_surface(body):
+    """``onto_surface`` puts points given 3 mm inside and outside the sphere's mesh on the
+    IMLS zero set (|f| below a micrometre), moving each along the surface normal (radially
+    on a sphere) by its offset from that set."""
+    from kgarment.sim.contact import onto_surface
+
+    p = _points(300, np.random.default_rng(3).uniform(R - 0.003, R + 0.003, 300), seed=4)
+    q = onto_surface(body, p)
+    _, a = _args(body, q)
+    f, _, _ = imls(torch.tensor(q), *a, order=0)
+    assert np.abs(f.numpy()).max() < 1e-6
+    radial = p / np.linalg.norm(p, axis=1, keepdims=True)
+    move = q - p
+    tangential = move - np.sum(move * radial, 1)[:, None] * radial
+    assert np.abs(tangential).max() < 0.05 * np.abs(move).max()
+    _, a = _args(body, p)
+    f0, _, _ = imls(torch.tensor(p), *a, order=0)
+    assert np.allclose(np.linalg.norm(move, axis=1), np.abs(f0.numpy()), rtol=0.05, atol=2e-5)

@@ -12,7 +12,10 @@ across them.  Measured at subdivision 0: the shirt's arms forward, arms raise an
 forward 1.2%, 1.3%, 2.7% with the ``paper`` material preset and 1.05%, 0.97%, 2.2% with
 ``reference``; the sleeve's flexion and extension 14% and 5.7% (``reference``); a
 120-degree overhead reach with the shirt's back clutches 0.04-0.07% (its short sleeve
-slides off the rising arm on the frictionless body).  The final evaluation then says,
+slides off the rising arm on the frictionless body).  With the garment starting on the
+contact surface (``SIM_MODEL`` 2, 2026-11-26; ``paper``): the shirt's motions 2.4%, 0.86%,
+3.8%, the reach 0.31% (the ON clutches now store a little of the garment's stretch over the
+surface at every pose), hence the threshold 0.5%.  The final evaluation then says,
 per design, which clutches carry load in which motion.
 """
 

@@ -31,7 +31,13 @@ from kgarment.design.loads import load_chart
 from kgarment.design.loop import LoopState, initial_state, iterate, run_loop
 from kgarment.design.refine import coarse_levels, run_coarse, transfer
 from kgarment.design.report import finish_run
-from kgarment.design.run import best_iteration, check_run_folder, load_checkpoint, save_checkpoint
+from kgarment.design.run import (
+    best_iteration,
+    check_model,
+    check_run_folder,
+    load_checkpoint,
+    save_checkpoint,
+)
 from kgarment.design.setup import DesignSetup, setup_from_problem
 from kgarment.errors import Cancelled, KgarmentError
 from kgarment.garment import Garment
@@ -88,6 +94,7 @@ def open_run(problem: Problem | None, run, *, resume: bool = False, force: bool 
     if resume:
         problem = load_problem(run / "problem.toml")
         resumed = load_checkpoint(run)  # a damaged checkpoint is reported before the slow build
+        check_model(run)
     custom_garment = garment is not None and not resume
     body = build_body(problem) if body is None else body
     garment = build_garment(problem, body) if garment is None else garment

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kgarment.constants import X_MIN, target_reached
+from kgarment.constants import SIM_MODEL, X_MIN, target_reached
 from kgarment.design.beso import design_values
 from kgarment.design.loop import LoopState
 from kgarment.design.metrics import Stored
@@ -167,7 +167,7 @@ def save_checkpoint(run: Path, st: LoopState) -> None:
         ref_values=np.array([st.reference[k] for k in ref_keys], dtype=np.float64),
         ref_clutch=np.array([st.reference_stored[k].clutch_energy for k in ref_keys], dtype=np.float64),
         metrics=np.array(json.dumps(st.metrics)), done=np.array(st.done),
-        n_faces=np.array(len(st.design)),
+        n_faces=np.array(len(st.design)), sim_model=np.array(SIM_MODEL),
         designs=np.array([np.packbits(d) for d in st.designs]) if st.designs else np.zeros((0, 0), np.uint8),
     )
     if st.guarded is not None:  # the step guard's, only when used (earlier checkpoints have none)
@@ -196,6 +196,18 @@ def load_checkpoint(run: Path) -> LoopState:
         return _state_from(z)
     except (KeyError, ValueError, IndexError, TypeError) as exc:
         raise KgarmentError(f"{path} is damaged ({type(exc).__name__}: {exc}); start the run again") from None
+
+
+def check_model(run: Path) -> None:
+    """A run is resumed only under the simulation model it was designed with
+    (``kgarment.constants.SIM_MODEL``; checkpoints before version 2 carry none: 1)."""
+    path = Path(run) / "checkpoint.npz"
+    with np.load(path) as z:
+        then = int(z["sim_model"]) if "sim_model" in z.files else 1
+    if then != SIM_MODEL:
+        raise KgarmentError(f"{run} was designed with simulation model {then} and this kgarment simulates model "
+                            f"{SIM_MODEL} (kgarment.constants.SIM_MODEL: what changed); its iterations would "
+                            "mix the two: start it again with --force, or give another --out")
 
 
 def _state_from(z: dict) -> LoopState:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.constants import SIM_MODEL
 from kgarment.design import Evaluator
 from kgarment.io import atomic_write_text
 from kgarment.problem import Problem, build_body, build_clutches, build_garment, problem_to_dict
@@ -47,8 +48,10 @@ def design_key(design: np.ndarray) -> str:
 
 
 def problem_key(problem: Problem, strips) -> str:
-    """A short hash of a built problem: its fields and its clutch strips as laid."""
+    """A short hash of a built problem: its fields, its clutch strips as laid, and the
+    simulation model's version (an evaluation cached under other physics is not reused)."""
     h = hashlib.sha1(json.dumps(problem_to_dict(problem), sort_keys=True, default=str).encode())
+    h.update(f"sim_model {SIM_MODEL}".encode())
     for s in strips:
         h.update(f"{s.name}|{s.length:.9g}|{s.width:.9g}|{s.prestrain:.9g}".encode())
         h.update(np.ascontiguousarray(s.bind_face).tobytes())

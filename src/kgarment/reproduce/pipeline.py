@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.constants import SIM_MODEL
 from kgarment.design import design_values
 from kgarment.errors import KgarmentError
 from kgarment.io import atomic_write_text, json_text
@@ -234,7 +235,7 @@ def _document(res, results: dict, cross: dict, t0: float, device: str) -> dict:
     """data.json's document from the experiments' entries and the cross-evaluations."""
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # this process; workers are alike
     presets = sorted({e["preset"] for e in results.values()})
-    return {"resolution": res.__dict__, "preset": ", ".join(presets),
+    return {"resolution": res.__dict__, "sim_model": SIM_MODEL, "preset": ", ".join(presets),
             "clutch_model": ", ".join(sorted({e.get("clutch_model", "locked") for e in results.values()})),
             "experiments": results, "cross": cross,
             "wall_seconds": time.time() - t0, "peak_rss_mb": peak, "device": device}
@@ -260,6 +261,10 @@ def previous_results(out: Path, res, overrides: dict | None) -> dict:
         raise KgarmentError(f"{path} is not a reproduction's data ({err}); give another --out") from None
     if old_res != res.name:
         raise KgarmentError(f"{path} holds a {old_res}-resolution reproduction, not {res.name}; give another --out")
+    if doc.get("sim_model", 1) != SIM_MODEL:
+        raise KgarmentError(f"{path} was made with simulation model {doc.get('sim_model', 1)} and this kgarment "
+                            f"simulates model {SIM_MODEL} (kgarment.constants.SIM_MODEL: what changed); one report "
+                            "would mix the two: give another --out")
     kept = {}
     for name, e in old.items():
         if name not in BY_NAME:

@@ -366,3 +366,34 @@ def contact(p: torch.Tensor, k: torch.Tensor, bv, bn, bh, index, valid, nearest,
             h = h + (2.0 * ka * fa)[:, None, None] * ha
         hess[act] = h
     return e, grad, hess
+
+
+SURFACE_STEPS = 6  # Newton steps of :func:`onto_surface` (each 1e-3 to 1e-6 of the last offset on Anny)
+SURFACE_MAX_STEP = 0.01  # m: a longer step is cut to this (a point far off the body is not pulled across)
+
+
+def onto_surface(body: ImplicitBody, points: np.ndarray, steps: int = SURFACE_STEPS) -> np.ndarray:
+    """``points`` (p, 3) m moved onto the body's contact surface ``f = 0`` along the
+    surface's gradient (Newton's steps ``-f grad f / |grad f|^2`` on the IMLS function;
+    ``|grad f|`` is about 1 near the surface).  Why: the posed body's mesh is not its
+    contact surface -- a convex limb's IMLS surface bulges about 1 mm past its mesh -- so a
+    garment placed on the mesh starts inside it, and attachment targets on the mesh pull
+    the held rings into the body that contact pushes them out of (measured: 96 J held at
+    rest by a nearly fully reinforced shirt at subdivision 1, and its rest pose not solved
+    to 1e-4 from that start)."""
+    p = np.array(points, dtype=np.float64).reshape(-1, 3)
+    if not len(p):
+        return p
+    cache = None
+    for _ in range(steps):
+        cache = update_neighbors(body, p, cache)
+        t = [torch.as_tensor(np.ascontiguousarray(a), dtype=torch.float64)
+             for a in (p, body.vertices, body.normals, body.support, cache.valid)]
+        f, gf, _ = imls_fast(*t[:4], torch.as_tensor(cache.index, dtype=torch.long), t[4],
+                             torch.as_tensor(cache.nearest, dtype=torch.long), order=1)
+        f, gf = f.numpy(), gf.numpy()
+        g2 = np.einsum("ij,ij->i", gf, gf)
+        step = -np.where(g2 > 0.25, f / np.maximum(g2, 1e-300), 0.0)[:, None] * gf
+        n = np.linalg.norm(step, axis=1, keepdims=True)
+        p = p + step * np.minimum(1.0, SURFACE_MAX_STEP / np.maximum(n, 1e-300))
+    return p

@@ -39,7 +39,7 @@ import numpy as np
 
 from kgarment.clutch.strip import ClutchStrip
 from kgarment.sim.assembly import HessianPattern, build_pattern
-from kgarment.sim.contact import ImplicitBody
+from kgarment.sim.contact import ImplicitBody, onto_surface
 from kgarment.sim.materials import MaterialPreset, get_preset
 from kgarment.sim.membrane import TriangleElements
 from kgarment.sim.slip import axial_coefficients, rest_width
@@ -238,15 +238,31 @@ class Motion:
     @staticmethod
     def create(name: str, garment_x0: np.ndarray, body_vertices: np.ndarray, body_normals: np.ndarray,
                attach_faces: np.ndarray, attach_targets: np.ndarray,
-               body_faces: np.ndarray | None = None) -> Motion:
-        """Build a motion (and its IMLS body) from plain arrays (shapes as in the class doc)."""
+               body_faces: np.ndarray | None = None, on_surface: bool = True,
+               garment_faces: np.ndarray | None = None) -> Motion:
+        """Build a motion (and its IMLS body) from plain arrays (shapes as in the class doc).
+
+        With ``on_surface`` (``SIM_MODEL`` 2) the skin-tight garment, given on the body's
+        mesh, is moved onto its contact surface (:func:`kgarment.sim.contact.onto_surface`,
+        typically ~1 mm), and the attachment targets with it: each by the mean move of its
+        face's three vertices where ``garment_faces`` (m, 3) is given (targets at the face
+        centroids then stay there: no spring is stretched at the start), else onto the
+        surface.  So the garment starts touching the body, not inside it, and the held
+        rings are not pulled into the body that contact pushes them out of."""
         af = np.asarray(attach_faces, dtype=np.int64).reshape(-1)
         at = np.asarray(attach_targets, dtype=np.float64).reshape(-1, 3)
         if len(af) != len(at):
             raise ValueError("attach_faces (a,) and attach_targets (a, 3) disagree in length")
-        return Motion(name=name, garment_x0=np.asarray(garment_x0, dtype=np.float64),
-                      body=ImplicitBody.from_mesh(body_vertices, body_normals, body_faces),
-                      attach_faces=af, attach_targets=at)
+        body = ImplicitBody.from_mesh(body_vertices, body_normals, body_faces)
+        x0 = np.asarray(garment_x0, dtype=np.float64)
+        if on_surface:
+            moved = onto_surface(body, x0)
+            if garment_faces is not None:
+                at = at + (moved - x0)[np.asarray(garment_faces)[af]].mean(axis=1)
+            else:
+                at = onto_surface(body, at)
+            x0 = moved
+        return Motion(name=name, garment_x0=x0, body=body, attach_faces=af, attach_targets=at)
 
 
 def garment_motions(body, garment, names=None) -> dict[str, Motion]:
@@ -259,7 +275,7 @@ def garment_motions(body, garment, names=None) -> dict[str, Motion]:
     """
     attached = np.flatnonzero(garment.attached)
     return {m: Motion.create(m, garment.vertices(m), body.vertices(m), body.normals(m), attached,
-                             garment.attachment_targets(m), body.faces)
+                             garment.attachment_targets(m), body.faces, garment_faces=garment.faces)
             for m in (names or garment.motion_names)}
 
 

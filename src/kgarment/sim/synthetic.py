@@ -81,7 +81,9 @@ class Tube:
     def motion(self, name: str, stretch: float, twist: float, body_res: tuple[int, int] = (96, 60),
                margin: float = 0.05) -> Motion:
         """Bottom ring held, top ring moved by ``stretch`` (fraction of the length) along z
-        and rotated by ``twist`` radians; skin-tight initial guess interpolating both."""
+        and rotated by ``twist`` radians; skin-tight initial guess interpolating both, kept
+        where it is (not moved onto the cylinder's contact surface: tests compare this
+        analytic start with hand calculations)."""
         bv, bn, bf = cylinder_body(self.radius, self.z0 - margin, self.z1 + margin, *body_res)
         X = self.vertices
         s = (X[:, 2] - self.z0) / (self.z1 - self.z0)
@@ -89,7 +91,7 @@ class Tube:
         bottom, top = self.ring_faces(0), self.ring_faces(self.n_z - 2)
         faces = np.concatenate([bottom, top])
         targets = x0[self.faces[faces]].mean(1)
-        return Motion.create(name, x0, bv, bn, faces, targets, bf)
+        return Motion.create(name, x0, bv, bn, faces, targets, bf, on_surface=False)
 
 
 def _twist_stretch(X, s, dz, twist, radius):
