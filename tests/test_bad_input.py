@@ -330,7 +330,7 @@ def test_a_run_designed_under_another_simulation_model_is_not_resumed(tmp_path, 
     2, the folder untouched; a checkpoint of this model passes the check."""
     from kgarment.constants import SIM_MODEL
     from kgarment.design.loop import LoopState
-    from kgarment.design.run import check_model, save_checkpoint
+    from kgarment.design.run import check_model, checkpoint_model, save_checkpoint
 
     monkeypatch.chdir(tmp_path)
     run = tmp_path / "run"
@@ -343,6 +343,7 @@ def test_a_run_designed_under_another_simulation_model_is_not_resumed(tmp_path, 
         assert int(z["sim_model"]) == SIM_MODEL
         old = {k: z[k] for k in z.files if k != "sim_model"}
     np.savez(run / "checkpoint.npz", **old)
+    assert checkpoint_model(run) == 1
     content = (run / "checkpoint.npz").read_bytes()
     rc, _, err = run_cli(["design", "--resume", "run"])
     assert_one_line(rc, err, f"was designed with simulation model 1 and this kgarment simulates model {SIM_MODEL}")

@@ -88,7 +88,12 @@ def cmd_demo(args) -> int:
     out = Path(args.out)
     status = run_status(out)
     if status == "finished" and not args.force:
-        print(f"{out} already holds a finished design (use --force to redo it); results:")
+        from kgarment.constants import SIM_MODEL
+        from kgarment.design.run import checkpoint_model
+
+        then = checkpoint_model(out)
+        older = f", made with simulation model {then} (this kgarment simulates {SIM_MODEL})" if then != SIM_MODEL else ""
+        print(f"{out} already holds a finished design{older} (use --force to redo it); results:")
         for f in [out / "metrics.csv", out / "progress.png"] + sorted((out / "final").glob("*")):
             print(f"  {f}")
         return 0

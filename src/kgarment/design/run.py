@@ -198,12 +198,16 @@ def load_checkpoint(run: Path) -> LoopState:
         raise KgarmentError(f"{path} is damaged ({type(exc).__name__}: {exc}); start the run again") from None
 
 
+def checkpoint_model(run: Path) -> int:
+    """The simulation model a run was designed with (``kgarment.constants.SIM_MODEL``;
+    checkpoints before version 2 carry none: 1)."""
+    with np.load(Path(run) / "checkpoint.npz") as z:
+        return int(z["sim_model"]) if "sim_model" in z.files else 1
+
+
 def check_model(run: Path) -> None:
-    """A run is resumed only under the simulation model it was designed with
-    (``kgarment.constants.SIM_MODEL``; checkpoints before version 2 carry none: 1)."""
-    path = Path(run) / "checkpoint.npz"
-    with np.load(path) as z:
-        then = int(z["sim_model"]) if "sim_model" in z.files else 1
+    """A run is resumed only under the simulation model it was designed with."""
+    then = checkpoint_model(run)
     if then != SIM_MODEL:
         raise KgarmentError(f"{run} was designed with simulation model {then} and this kgarment simulates model "
                             f"{SIM_MODEL} (kgarment.constants.SIM_MODEL: what changed); its iterations would "
