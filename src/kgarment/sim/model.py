@@ -225,8 +225,8 @@ class Motion:
     """One motion's inputs.
 
     name : str; garment_x0 : (n, 3) initial deformed garment (skin-tight on the posed
-    body); body : ImplicitBody of the posed body; attach_faces : (a,) garment face ids;
-    attach_targets : (a, 3) target centroids, m.
+    body: on its contact surface, see :meth:`create`); body : ImplicitBody of the posed
+    body; attach_faces : (a,) garment face ids; attach_targets : (a, 3) target centroids, m.
     """
 
     name: str
