@@ -89,10 +89,10 @@ def cmd_demo(args) -> int:
     status = run_status(out)
     if status == "finished" and not args.force:
         from kgarment.constants import SIM_MODEL
-        from kgarment.design.run import checkpoint_model
+        from kgarment.design.run import checkpoint_model, other_model
 
         then = checkpoint_model(out)
-        older = f", made with simulation model {then} (this kgarment simulates {SIM_MODEL})" if then != SIM_MODEL else ""
+        older = f", made with {other_model(then)}" if then != SIM_MODEL else ""
         print(f"{out} already holds a finished design{older} (use --force to redo it); results:")
         for f in [out / "metrics.csv", out / "progress.png"] + sorted((out / "final").glob("*")):
             print(f"  {f}")

@@ -205,12 +205,18 @@ def checkpoint_model(run: Path) -> int:
         return int(z["sim_model"]) if "sim_model" in z.files else 1
 
 
+def other_model(then: int) -> str:
+    """How a run or report made with simulation model ``then`` differs from this kgarment's
+    (the clause of the one-line errors that refuse to mix them)."""
+    return (f"simulation model {then} and this kgarment simulates model {SIM_MODEL} "
+            "(kgarment.constants.SIM_MODEL: what changed)")
+
+
 def check_model(run: Path) -> None:
     """A run is resumed only under the simulation model it was designed with."""
     then = checkpoint_model(run)
     if then != SIM_MODEL:
-        raise KgarmentError(f"{run} was designed with simulation model {then} and this kgarment simulates model "
-                            f"{SIM_MODEL} (kgarment.constants.SIM_MODEL: what changed); its iterations would "
+        raise KgarmentError(f"{run} was designed with {other_model(then)}; its iterations would "
                             "mix the two: start it again with --force, or give another --out")
 
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from kgarment.constants import SIM_MODEL
 from kgarment.design import design_values
+from kgarment.design.run import other_model
 from kgarment.errors import KgarmentError
 from kgarment.io import atomic_write_text, json_text
 from kgarment.render import faces_near, render_design
@@ -261,10 +262,10 @@ def previous_results(out: Path, res, overrides: dict | None) -> dict:
         raise KgarmentError(f"{path} is not a reproduction's data ({err}); give another --out") from None
     if old_res != res.name:
         raise KgarmentError(f"{path} holds a {old_res}-resolution reproduction, not {res.name}; give another --out")
-    if doc.get("sim_model", 1) != SIM_MODEL:
-        raise KgarmentError(f"{path} was made with simulation model {doc.get('sim_model', 1)} and this kgarment "
-                            f"simulates model {SIM_MODEL} (kgarment.constants.SIM_MODEL: what changed); one report "
-                            "would mix the two: give another --out")
+    then = doc.get("sim_model", 1)  # reports before the model's version was recorded: 1
+    if then != SIM_MODEL:
+        raise KgarmentError(f"{path} was made with {other_model(then)}; one report would mix the two: "
+                            "give another --out")
     kept = {}
     for name, e in old.items():
         if name not in BY_NAME:

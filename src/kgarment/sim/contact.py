@@ -384,12 +384,13 @@ def onto_surface(body: ImplicitBody, points: np.ndarray, steps: int = SURFACE_ST
     p = np.array(points, dtype=np.float64).reshape(-1, 3)
     if not len(p):
         return p
+    bv, bn, bh = (torch.as_tensor(np.ascontiguousarray(a), dtype=torch.float64)
+                  for a in (body.vertices, body.normals, body.support))
     cache = None
     for _ in range(steps):
         cache = update_neighbors(body, p, cache)
-        t = [torch.as_tensor(np.ascontiguousarray(a), dtype=torch.float64)
-             for a in (p, body.vertices, body.normals, body.support, cache.valid)]
-        f, gf, _ = imls_fast(*t[:4], torch.as_tensor(cache.index, dtype=torch.long), t[4],
+        f, gf, _ = imls_fast(torch.from_numpy(p), bv, bn, bh, torch.as_tensor(cache.index, dtype=torch.long),
+                             torch.as_tensor(cache.valid, dtype=torch.float64),
                              torch.as_tensor(cache.nearest, dtype=torch.long), order=1)
         f, gf = f.numpy(), gf.numpy()
         g2 = np.einsum("ij,ij->i", gf, gf)
