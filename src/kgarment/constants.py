@@ -30,6 +30,15 @@ MAX_WORKERS = 8        # [solver] workers = 0 means one process per core, at mos
 
 PRESET_NAMES = ("paper", "reference")  # material presets (kgarment.sim.materials.PRESETS)
 
+# ----- skin-garment friction ([materials] skin_friction; kgarment.sim.friction) ---------------------
+FRICTION = 0.0         # [materials] skin_friction: the coefficient; 0 is the paper's frictionless body
+FRICTION_MAX = 2.0     # its allowed range is [0, FRICTION_MAX]
+FRICTION_SLIP = 2e-3   # metres: the slip at which friction reaches mu x the normal force (the skin's
+                       # tangential give; below it the garment sticks)
+FRICTION_LAGS = 3      # re-solves with the normal forces of the last equilibrium, at most
+FRICTION_SETTLED = 0.1  # the normal forces have settled when none moved by more than this share of
+                        # the largest
+
 # ----- BESO (method.md section 6; the paper's values) -----------------------------------------
 TARGET_AREA = 0.15     # A*, the reinforced share of the garment's area (0.20 for the sleeves)
 ER = 0.015             # evolution ratio: the target area shrinks by this share per iteration

@@ -83,6 +83,14 @@ def add_overrides(sp, *, motion: bool = True, garment: bool = True, subdivision:
                         "(the problem's [design] levels otherwise)")
     if clutch:
         add_clutch_model(sp)
+        add_skin_friction(sp)
+
+
+def add_skin_friction(sp) -> None:
+    """--skin-friction (the problem's [materials] skin_friction, kgarment.sim.friction)."""
+    sp.add_argument("--skin-friction", type=number(0.0, C.FRICTION_MAX), metavar="MU",
+                    help="friction coefficient between skin and garment (0: the paper's frictionless body; "
+                    "cloth on skin is about 0.3-0.6; default: the problem's [materials] skin_friction, else 0)")
 
 
 def add_clutch_model(sp, buckle_default: str = "the problem's [clutches] buckle") -> None:
@@ -106,7 +114,8 @@ def overrides(args) -> dict:
             "method": getattr(args, "solver", None), "tol": getattr(args, "tol", None),
             "max_iterations": getattr(args, "max_iterations", None),
             "clutch_model": getattr(args, "clutch_model", None), "holding_force": getattr(args, "holding_force", None),
-            "buckle": getattr(args, "buckle", None), "refine": getattr(args, "refine", False)}
+            "buckle": getattr(args, "buckle", None), "refine": getattr(args, "refine", False),
+            "friction": getattr(args, "skin_friction", None)}
 
 
 def load(args):

@@ -14,6 +14,7 @@ from kgarment.cli.common import (
     add_device,
     add_overrides,
     add_problem,
+    add_skin_friction,
     design_progress,
     expected_iterations,
     load,
@@ -152,7 +153,7 @@ def cmd_evaluate(args) -> int:
             check_output_file(path, flag)  # before the evaluation, not after it
     src = parse_design_source(args.design, run_required=True)
     p = override(load_problem(src.run / "problem.toml"), motions=args.motion, clutch_model=args.clutch_model,
-                 holding_force=args.holding_force, buckle=args.buckle)
+                 holding_force=args.holding_force, buckle=args.buckle, friction=args.skin_friction)
     if args.path and p.body.phenotypes:
         raise KgarmentError("--path: the force over the motion is solved on one body; for a multi-body design "
                             "([body] phenotypes) leave --path out (each wearer is evaluated at the target pose)")
@@ -177,8 +178,9 @@ def cmd_evaluate(args) -> int:
         print(f"force over the motion: {args.path} frames from rest to the target pose, ON and OFF")
         path = path_forces(ev, design, p, frames=args.path, report=lambda line: print(f"  {line}", flush=True))
         print(path.table())
-        # another clutch model than the run's gets files of its own (the run's path stays)
-        stem = src.run / (f"path-{k}" + (f"-{hw.model}" + ("-buckle" if hw.buckle else "") if other_hw else ""))
+        # another clutch model or skin friction than the run's gets files of its own (the run's path stays)
+        stem = src.run / (f"path-{k}" + (f"-{hw.model}" + ("-buckle" if hw.buckle else "") if other_hw else "")
+                          + (f"-mu{args.skin_friction:g}" if args.skin_friction is not None else ""))
         atomic_write_text(stem.with_suffix(".json"), json_text({"run": str(src.run), "iteration": k,
                                                                  **path.to_json()}))
         title = f"{src.run.name} iteration {k}: force over the motion" + (" (clutches slip)" if hw.model == "slip" else "")
@@ -265,6 +267,7 @@ def add_parsers(sub) -> None:
                     "weight, height, proportions, each in [0, 1]), the garment cut from the same faces and the "
                     "clutches at the same spots")
     add_clutch_model(sp)
+    add_skin_friction(sp)
     add_device(sp)
     sp.set_defaults(func=cmd_evaluate)
 

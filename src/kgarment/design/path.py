@@ -27,7 +27,9 @@ kept.  The last frame is the target
 pose, where the one design evaluator's equilibrium (two starts) is known: where it has
 less energy than the path's end, it replaces it and the frames before are re-solved
 backwards from it while that lowers their energy.  The report lists every frame
-re-solved.
+re-solved.  With skin friction (``[materials] skin_friction``, :mod:`kgarment.sim.friction`)
+none is: the state then depends on the path taken, not on which equilibrium stores least,
+and the frames solved one after the other are that path.
 """
 
 from __future__ import annotations
@@ -287,8 +289,10 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
             for j, r in zip(retry, again):
                 solved[j] = r
         results.update(zip(keys, solved))
-    resolved = _anchor_target(evaluator, design, motions, frames, by_motion, state, results)
-    resolved |= _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results)
+    resolved: set = set()
+    if model.friction == 0.0:  # with skin friction the state depends on the history: the frames stand
+        resolved = _anchor_target(evaluator, design, motions, frames, by_motion, state, results)
+        resolved |= _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results)
     out = rest_frames(evaluator, design, problem, motions, sim_motions=sim_motions,
                       first={(m, s): results[(m, s, 0)].x for m in motions for s in STATES})
     for m in motions:

@@ -71,7 +71,8 @@ def build_model(problem: Problem, garment: Garment, strips) -> SimModel:
     strips = list(strips) if problem.design.objective != "passive" else []
     hw = problem.clutch_spec().hardware
     return build_sim_model(garment.rest_vertices, garment.faces, strips, preset=problem.materials.preset,
-                           holding_force=holding_forces(hw, strips), clutch_buckle=hw.buckle)
+                           holding_force=holding_forces(hw, strips), clutch_buckle=hw.buckle,
+                           friction=problem.materials.skin_friction)
 
 
 def holding_forces(hw: ClutchHardware, strips) -> np.ndarray | None:

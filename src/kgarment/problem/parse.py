@@ -37,6 +37,7 @@ from kgarment.problem.spec import (
     SolverSpec,
 )
 
+MATERIAL_RANGES = {"skin_friction": (0.0, C.FRICTION_MAX)}
 SECTIONS = ("body", "motions", "garment", "clutches", "materials", "design", "solver")
 
 
@@ -66,10 +67,10 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
                             "phenotypes) runs at its garment's subdivision (leave levels out)")
     solver = dict(data.get("solver", {}))
     mats = dict(data.get("materials", {}))
-    check_keys("materials", mats, ("preset",))
+    check_keys("materials", mats, ("preset", "skin_friction"))
     if "preset" in solver:  # run folders written before [materials] existed
         mats.setdefault("preset", solver.pop("preset"))
-    materials = section(MaterialSpec, "materials", mats, {"preset": PRESET_NAMES}, {})
+    materials = section(MaterialSpec, "materials", mats, {"preset": PRESET_NAMES}, MATERIAL_RANGES)
     solver = section(SolverSpec, "solver", solver, {"method": METHODS}, C.SOLVER_RANGES)
     activation = _activation(data.get("motions", {}).get("activation", {}), names)
     return Problem(body, names, user, garment, clutches, design, solver, materials, source, activation)
@@ -407,7 +408,7 @@ def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
         garment["mask"] = str(Path(g.mask).resolve())
         garment["attach"] = list(g.attach)
     out = {"body": body, "motions": motions, "garment": garment, "design": problem.design.flat(),
-           "solver": asdict(problem.solver), "materials": asdict(problem.materials)}
+           "solver": asdict(problem.solver), "materials": _materials(problem.materials)}
     if clutch_file is not None:
         out["clutches"] = {"file": str(Path(clutch_file).resolve())}
     hw = problem.clutch_spec().hardware.to_dict()
@@ -416,10 +417,20 @@ def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
     return out
 
 
+def _materials(m: MaterialSpec) -> dict:
+    """[materials] as written: skin_friction only where set, so that the files (and hashes)
+    of problems without it stay as they were."""
+    out = asdict(m)
+    if not m.skin_friction:
+        out.pop("skin_friction")
+    return out
+
+
 def override(problem: Problem, *, motions=None, template: str | None = None, subdivision: int | None = None,
              preset: str | None = None, method: str | None = None, tol: float | None = None,
              max_iterations: int | None = None, clutch_model: str | None = None,
-             holding_force: float | None = None, buckle: bool | None = None, refine: bool = False) -> Problem:
+             holding_force: float | None = None, buckle: bool | None = None, refine: bool = False,
+             friction: float | None = None) -> Problem:
     """``problem`` with command-line overrides (None: keep the file's), validated with the
     same rules and messages as the problem file's fields."""
     changes: dict = {}
@@ -432,8 +443,10 @@ def override(problem: Problem, *, motions=None, template: str | None = None, sub
     if subdivision is not None:
         g = dataclasses.replace(g, subdivision=_subdivision(subdivision))
     changes["garment"] = g
-    if preset is not None:
-        changes["materials"] = section(MaterialSpec, "materials", {"preset": preset}, {"preset": PRESET_NAMES}, {})
+    if preset is not None or friction is not None:
+        mats = {**asdict(problem.materials), **{k: v for k, v in (("preset", preset), ("skin_friction", friction))
+                                                 if v is not None}}
+        changes["materials"] = section(MaterialSpec, "materials", mats, {"preset": PRESET_NAMES}, MATERIAL_RANGES)
     solver = {k: v for k, v in (("method", method), ("tol", tol)) if v is not None}
     if solver:
         solver = {**asdict(problem.solver), **solver}

@@ -247,9 +247,12 @@ class SolverSpec:
 @dataclass(frozen=True)
 class MaterialSpec:
     """[materials]: ``preset`` "paper" (0.5 MPa / 0.5 GPa / 3 GPa, the paper's text) or
-    "reference" (0.5 / 5.7 / 25.7 MPa, the reference implementation; kgarment.sim.materials)."""
+    "reference" (0.5 / 5.7 / 25.7 MPa, the reference implementation; kgarment.sim.materials);
+    ``skin_friction``: the skin-garment friction coefficient (kgarment.sim.friction; 0, the
+    default, is the paper's frictionless body; cloth on skin is about 0.3 to 0.6)."""
 
     preset: str = "paper"
+    skin_friction: float = C.FRICTION
 
 
 @dataclass(frozen=True)
@@ -310,5 +313,6 @@ class Problem:
         lines.append(f"clutches: {'; '.join(parts) or 'none'}" + (f"; {c.hardware}" if c.hardware.to_dict() else ""))
         lines.append("design: " + ", ".join(f"{k} {v}" for k, v in self.design.flat().items()))
         lines.append("solver: " + ", ".join(f"{k} {v}" for k, v in asdict(self.solver).items()))
-        lines.append(f"materials: preset {self.materials.preset}")
+        lines.append(f"materials: preset {self.materials.preset}"
+                     + (f"; skin friction {self.materials.skin_friction:g}" if self.materials.skin_friction else ""))
         return "\n".join(lines)

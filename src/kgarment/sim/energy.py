@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from kgarment.sim.contact import NEIGHBORS, contact, gather, imls_fast, update_neighbors
+from kgarment.sim.friction import friction, normal_forces
 from kgarment.sim.materials import (
     check_design,
     clutch_material,
@@ -167,6 +168,13 @@ class StateProblem:
         self._cache_obj = self._pre = None
         self.m_garment = model.n_faces
         self.n_evals = 0
+        # skin-garment friction (sim.friction): anchors at the skin-tight start, the normal
+        # forces and normals lagged (set_friction), none until they are set
+        self.friction_on = model.friction > 0.0
+        if self.friction_on:
+            n = model.n_garment
+            self.fr_anchor = T(self.initial_positions()[:n])
+            self.fr_normal, self.fr_bound = T(np.zeros((n, 3))), T(np.zeros(n))
 
     def _t(self, a, dtype=torch.float64):
         return torch.as_tensor(np.ascontiguousarray(a), dtype=dtype, device=self.device)
@@ -203,10 +211,11 @@ class StateProblem:
         e_c, g_c, h_c = contact(x, self.k_contact, *self._contact_args(x), order=order,
                                 exact_hessian=exact or self.exact_contact_hessian, pre=self._pre)
         e_s, g_s = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=min(order, 1))
-        total = e_m.sum() + e_c.sum() + e_s.sum()
+        e_f, g_f, h_f = self._friction(x, order)
+        total = e_m.sum() + e_c.sum() + e_s.sum() + e_f.sum()
         if check:
             if not bool(torch.isfinite(total)):
-                for term, val in self._split_terms(e_m, e_c, e_s).items():
+                for term, val in self._split_terms(e_m, e_c, e_s, e_f).items():
                     self._check(val, term)
         elif not bool(torch.isfinite(total)):
             total = torch.tensor(float("inf"))
@@ -214,12 +223,18 @@ class StateProblem:
             return float(total), None, None
         grad = g_c + g_s
         grad.index_add_(0, self.tri.reshape(-1), g_m.reshape(-1, 3))
+        if g_f is not None:
+            grad[: len(g_f)] += g_f
         if check and not bool(torch.isfinite(grad).all()):
             self._check(g_m, "membrane", "gradient")
             self._check(g_c, "contact", "gradient")
             self._check(g_s, "springs", "gradient")
+            if g_f is not None:
+                self._check(g_f, "friction", "gradient")
         if order == 1:
             return float(total), grad, None
+        if h_f is not None:
+            h_c[: len(h_f)] += h_f
         data = torch.zeros(self.model.pattern.nnz, dtype=x.dtype, device=x.device)
         data.index_add_(0, self.elem_pos, h_m.reshape(-1)[self.elem_sel])
         data.index_add_(0, self.vert_pos, h_c.reshape(-1, 9)[:, self.vert_sel].reshape(-1))
@@ -243,19 +258,50 @@ class StateProblem:
                 h = h.index_add(0, idx, hs)
         return e, g, h
 
-    def _split_terms(self, e_m, e_c, e_s) -> dict[str, torch.Tensor]:
+    def _split_terms(self, e_m, e_c, e_s, e_f) -> dict[str, torch.Tensor]:
         m = self.m_garment
         out = {"membrane_garment": e_m[:m].sum(), "membrane_clutch": e_m[m:].sum(), "contact": e_c.sum()}
         for i, g in enumerate(GROUPS):
             out[g] = e_s[self.s_group == i].sum()
+        if self.friction_on:
+            out["friction"] = e_f.sum()
         return out
 
+    def _friction(self, x: torch.Tensor, order: int):
+        """The friction potential on the garment's vertices (``sim.friction``): energy (n,)
+        (zeros without friction), gradient (n, 3) and Hessian (n, 3, 3) or None."""
+        if not self.friction_on:
+            return x.new_zeros(1), None, None
+        n = self.model.n_garment
+        return friction(x[:n], self.fr_anchor, self.fr_normal, self.fr_bound, self.model.friction_slip,
+                        order=order)
+
+    def friction_lag(self, x: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+        """The friction bounds ``mu lambda`` (n,) N and unit contact normals (n, 3) at x
+        (``sim.friction.normal_forces``), for :meth:`set_friction`."""
+        model, n = self.model, self.model.n_garment
+        _, g_m, _ = self._membrane(x, 1, self.projection)
+        _, g_s = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=1)
+        g = g_s.clone()
+        g.index_add_(0, self.tri.reshape(-1), g_m.reshape(-1, 3))
+        f, gf = self.contact_linearization(x)
+        gf = gf[:n]
+        normal = gf / np.maximum(np.linalg.norm(gf, axis=1), 1e-300)[:, None]
+        lam = normal_forces(g[:n].cpu().numpy(), normal, f[:n], near=0.1 * model.mean_edge)
+        return model.friction * lam, normal
+
+    def set_friction(self, bound: np.ndarray, normal: np.ndarray) -> None:
+        """Hold the friction bounds (n,) N and normals (n, 3) for the next solves."""
+        self.fr_bound, self.fr_normal = self._t(bound), self._t(normal)
+
     def terms(self, x: torch.Tensor) -> tuple[dict[str, float], np.ndarray]:
-        """Energy by term (J) and per-element membrane energy (M,) J at x."""
+        """Energy by term (J; ``friction`` is the dissipation potential, not stored energy)
+        and per-element membrane energy (M,) J at x."""
         e_m, _, _ = self._membrane(x, 0, self.projection)
         e_c, _, _ = contact(x, self.k_contact, *self._contact_args(x), order=0, pre=self._pre)
         e_s, _ = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=0)
-        split = self._split_terms(e_m, e_c, e_s)
+        e_f, _, _ = self._friction(x, 0)
+        split = self._split_terms(e_m, e_c, e_s, e_f)
         for term, val in split.items():
             self._check(val, term)
         return {k: float(v) for k, v in split.items()}, e_m.cpu().numpy()

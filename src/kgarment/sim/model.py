@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kgarment.clutch.strip import ClutchStrip
+from kgarment.constants import FRICTION_SLIP
 from kgarment.sim.assembly import HessianPattern, build_pattern
 from kgarment.sim.contact import ImplicitBody, onto_surface
 from kgarment.sim.materials import MaterialPreset, get_preset
@@ -81,6 +82,8 @@ class SimModel:
     strip_width : (K,) each strip's mean rest width, m
     clutch_buckle : the clutch strips take no compression (``[clutches] buckle``): their
         elements relax like the cloth's and their sliders (``sim.slip``) only pull
+    friction : skin-garment friction coefficient (``sim.friction``; 0: frictionless, the
+        paper's model);  friction_slip : the slip (m) at which friction reaches its force
     """
 
     preset: MaterialPreset
@@ -100,6 +103,8 @@ class SimModel:
     slip_coef: np.ndarray | None = field(default=None, repr=False)
     strip_width: np.ndarray | None = None
     clutch_buckle: bool = False
+    friction: float = 0.0
+    friction_slip: float = FRICTION_SLIP
 
     @property
     def slips(self) -> bool:
@@ -158,6 +163,7 @@ def build_model(
     penalties: PenaltyParams = PenaltyParams(),
     holding_force=None,
     clutch_buckle: bool = False,
+    friction: float = 0.0,
 ) -> SimModel:
     """Build the simulation model.
 
@@ -165,7 +171,8 @@ def build_model(
     clutches : ClutchStrip list (bound to this garment);  preset : "paper" | "reference";
     holding_force : None (every clutch locked, the paper's model) or (K,) newtons per
     clutch, ``inf`` for a locked one (``sim.slip``);  clutch_buckle : the strips take no
-    compression (the paper's model: False).
+    compression (the paper's model: False);  friction : skin-garment friction coefficient
+    (``sim.friction``; 0, the paper's model: frictionless).
     """
     X = np.ascontiguousarray(garment_vertices, dtype=np.float64)
     F = np.ascontiguousarray(garment_faces, dtype=np.int64)
@@ -208,6 +215,8 @@ def build_model(
     static = SpringSet.concat(springs)
     pattern = build_pattern(n_all, elems.tri, static.index)
     hold = None
+    if not (np.isfinite(friction) and friction >= 0.0):
+        raise ValueError(f"friction must be a coefficient >= 0, got {friction}")
     if holding_force is not None:
         hold = np.asarray(holding_force, dtype=np.float64).reshape(-1)
         if hold.shape != (len(clutches),) or np.any(np.isnan(hold)) or np.any(hold <= 0):
@@ -217,7 +226,7 @@ def build_model(
                     relaxed=relaxed, vertex_area=varea, mean_edge=mean_edge, static_springs=static,
                     pattern=pattern, penalties=penalties, holding_force=hold,
                     slip_coef=np.concatenate(coef) if coef else np.zeros((0, 3)), strip_width=np.array(width),
-                    clutch_buckle=bool(clutch_buckle))
+                    clutch_buckle=bool(clutch_buckle), friction=float(friction))
 
 
 @dataclass(frozen=True)

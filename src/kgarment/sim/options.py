@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from kgarment.constants import MAX_NEWTON, SOLVER_TOL
+from kgarment.constants import FRICTION_LAGS, MAX_NEWTON, SOLVER_TOL
 
 FACTORIZATIONS = ("auto", "pardiso", "simplicial", "supernodal", "splu")
 
@@ -63,7 +63,8 @@ class SolverOptions:
     (``assembly.SparseCholesky``);
     armijo, max_backtracks : line search;  max_step : largest nodal move per Newton step,
     in mean edge lengths;  damping_min : smallest damping ``beta / (Y t)_cloth``;
-    lbfgs_history : L-BFGS memory;  on_fail : "warn" (log + flag) | "raise"
+    lbfgs_history : L-BFGS memory;  friction_lags : with skin-garment friction, re-solves
+    with the normal forces of the last equilibrium, at most (``serial._with_friction``);  on_fail : "warn" (log + flag) | "raise"
     (ConvergenceError) for states that do not converge.
     """
 
@@ -88,6 +89,7 @@ class SolverOptions:
     max_step: float = 10.0
     damping_min: float = 1e-9
     lbfgs_history: int = 20
+    friction_lags: int = FRICTION_LAGS
     on_fail: str = "warn"
 
     @property

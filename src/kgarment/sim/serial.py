@@ -31,7 +31,9 @@ class StateResult:
     garment_energy : (m,) J per garment face;  garment_density : (m,) J/m^2 of rest area
     (= W t);  clutch_energy, clutch_density : lists of (mc_k,) per clutch;
     energy : dict term -> J (``membrane_garment``, ``membrane_clutch``, ``contact``,
-    ``attach``, ``anchor``, ``tie``);  convergence : Convergence.
+    ``attach``, ``anchor``, ``tie``);  convergence : Convergence;  friction : the
+    skin-garment friction potential at x (J; ``sim.friction``: a dissipation, not in
+    ``energy``).
     """
 
     name: str
@@ -43,6 +45,7 @@ class StateResult:
     energy: dict[str, float]
     convergence: Convergence
     garment_x: np.ndarray = field(repr=False, default=None)
+    friction: float = 0.0
 
     @property
     def converged(self) -> bool:
@@ -64,7 +67,7 @@ def result_of(prob: StateProblem, x: np.ndarray, rec: Convergence) -> StateResul
     cd = [dens[fo[k + 1]: fo[k + 2]] for k in range(model.n_clutches)]
     return StateResult(name=prob.name, x=x, garment_energy=e_el[:m], garment_density=dens[:m],
                        clutch_energy=ce, clutch_density=cd, energy={t: terms[t] for t in TERMS},
-                       convergence=rec, garment_x=x[: model.n_garment])
+                       convergence=rec, garment_x=x[: model.n_garment], friction=terms.get("friction", 0.0))
 
 
 def prepare_state(model: SimModel, design: np.ndarray, state: SimState,
@@ -103,17 +106,53 @@ def solve_serial(model: SimModel, design: np.ndarray, states, warm, options: Sol
     for state, w in zip(states, warm):
         prob = prepare_state(model, design, state, options)
         x0 = prob.initial_positions() if w is None else w
-        if options.method == "newton":
-            x, rec = newton_solve(prob, x0, options, linsolver)
-            if not rec.converged and options.rescue_shifts > options.max_shifts:
-                x, rec = _rescue(prob, x0, x, rec, options, linsolver)
+        if prob.friction_on:
+            x, rec = _with_friction(prob, x0, options, linsolver)
         else:
-            x, rec = lbfgs_solve(prob, x0, options)
+            x, rec = _solve(prob, x0, options, linsolver)
         log.info("state %s: %s %s in %d iterations, %.3f s, residual %.3g (tol %.3g), max force %.3g N",
                  state.name, options.method, "converged" if rec.converged else "NOT converged",
                  rec.iterations, rec.wall_time, rec.residual, rec.tolerance, rec.force_max)
         results.append(result_of(prob, x, rec))
     return results
+
+
+def _solve(prob: StateProblem, x0: np.ndarray, options: SolverOptions, linsolver) -> tuple[np.ndarray, Convergence]:
+    """One solve from x0 (N, 3), Newton with its rescue or L-BFGS."""
+    if options.method != "newton":
+        return lbfgs_solve(prob, x0, options)
+    x, rec = newton_solve(prob, x0, options, linsolver)
+    if not rec.converged and options.rescue_shifts > options.max_shifts:
+        x, rec = _rescue(prob, x0, x, rec, options, linsolver)
+    return x, rec
+
+
+def _with_friction(prob: StateProblem, x0: np.ndarray, options: SolverOptions, linsolver):
+    """Solve with skin-garment friction (``sim.friction``): the normal forces lagged from
+    the start x0 (N, 3) (the pressure of the skin-tight garment, or of the warm start's
+    equilibrium), then from each equilibrium, re-solving until no bound moved by more than
+    ``FRICTION_SETTLED`` of the largest or ``options.friction_lags`` re-solves are done;
+    iterations and time add up."""
+    from kgarment.constants import FRICTION_SETTLED
+
+    def lag(x):
+        return prob.friction_lag(torch.as_tensor(np.asarray(x, dtype=np.float64), device=prob.device))
+
+    bound, normal = lag(x0)
+    prob.set_friction(bound, normal)
+    x, rec = _solve(prob, x0, options, linsolver)
+    for _ in range(options.friction_lags):
+        new, new_normal = lag(x)
+        if np.abs(new - bound).max(initial=0.0) <= FRICTION_SETTLED * max(new.max(initial=0.0), 1e-12):
+            break
+        bound, normal = new, new_normal
+        prob.set_friction(bound, normal)
+        x, rec2 = _solve(prob, x, options, linsolver)
+        rec = replace(rec2, iterations=rec.iterations + rec2.iterations, wall_time=rec.wall_time + rec2.wall_time,
+                      evaluations=rec.evaluations + rec2.evaluations)
+    log.debug("state %s: friction bounds up to %.3g N over %d vertices", prob.name, bound.max(initial=0.0),
+              int((bound > 0).sum()))
+    return x, rec
 
 
 def _rescue(prob, x0, x, rec, options, linsolver):

@@ -1,0 +1,78 @@
+"""Skin-garment friction: a lagged, smoothed Coulomb potential (``[materials] skin_friction``).
+
+The paper's body is frictionless: the garment slides along the skin and lifts off freely.
+A sleeve held at both ends then has a nearly free mode, turning about the arm, and on a
+flexing elbow it takes it: the strip over the elbow's outside moves round to its axis,
+where flexion does not stretch it, and the sleeve stores almost nothing (measured on the
+two-motion sleeve, issue #19).  Cloth on skin has a friction coefficient of about 0.3 to
+0.6 (Gerhardt et al. 2008; Derler & Gerhardt 2012), and a strip pulled tight over a bent
+elbow presses hard on it, so a real sleeve does not turn there.
+
+Model.  Each garment vertex v is held to its *anchor* ``a_v``: where it starts, skin-tight
+on the posed body (the garment that followed the skin without slipping).  With the
+contact normal force ``lambda_v`` and the unit contact normal ``n_v`` *lagged* (taken at
+a given configuration and held fixed during a solve, as in IPC: Li et al. 2020, section 5),
+the tangential slip ``u_v = (I - n_v n_v^T)(x_v - a_v)`` costs the dissipation potential
+
+    D = sum_v  mu lambda_v f0(|u_v|),   f0(y) = y                        (y >= eps)
+                                        f0(y) = -y^3/(3 eps^2) + y^2/eps + eps/3  (y < eps)
+
+whose force is ``mu lambda_v`` along the slip once it exceeds ``eps`` (sliding, Coulomb)
+and grows from zero below it (sticking; ``eps`` is the tangential give of the skin, a
+millimetre or two).  ``f0`` is C2 in ``y`` apart from ``y = eps`` (C1), and its Hessian
+is positive semi-definite everywhere (the tangential eigenvalues are ``mu lambda (2/eps -
+2 y/eps^2)`` and ``mu lambda (2/eps - y/eps^2)`` below ``eps``, ``mu lambda / y`` and 0
+above), so Newton needs no projection for it.
+
+The lag (:func:`normal_forces`): the normal force is the part of the other forces on a
+vertex (membrane and springs) that pushes it into the body, ``max(0, n . dE/dx)``, for
+vertices on or inside the contact surface.  At an equilibrium that is exactly the contact
+penalty's force; at the skin-tight start it is the pressure of the garment stretched with
+the skin (the first estimate, before anything slipped).  :func:`kgarment.sim.serial.solve_serial`
+re-solves with the normal forces of the equilibrium until they settle (``friction_lags``).
+The potential is a dissipation, not stored energy: it is minimised with the rest but not
+counted in a state's energy (``StateResult.energy``; its value is ``StateResult.friction``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+
+def friction(x: torch.Tensor, anchor: torch.Tensor, normal: torch.Tensor, bound: torch.Tensor, eps: float,
+             order: int = 0):
+    """The smoothed Coulomb potential per vertex (module doc).
+
+    x, anchor, normal : (P, 3) positions (m), anchors (m) and unit normals;  bound : (P,)
+    the largest friction force ``mu lambda`` (N);  eps : the slip (m) at which it is reached.
+    Returns energy (P,) J, gradient (P, 3) N or None and Hessian (P, 3, 3) N/m or None.
+    """
+    d = x - anchor
+    u = d - (d * normal).sum(1, keepdim=True) * normal  # tangential slip (P, 3)
+    y = torch.linalg.vector_norm(u, dim=1)
+    stick = y < eps
+    e = bound * torch.where(stick, -y**3 / (3.0 * eps**2) + y**2 / eps + eps / 3.0, y)
+    if order == 0:
+        return e, None, None
+    ysafe = torch.where(y > 0, y, torch.ones_like(y))
+    ratio = torch.where(stick, 2.0 / eps - y / eps**2, 1.0 / ysafe)  # f0'(y) / y
+    grad = (bound * ratio)[:, None] * u
+    if order == 1:
+        return e, grad, None
+    eye = torch.eye(3, dtype=x.dtype, device=x.device)
+    proj = eye - normal[:, :, None] * normal[:, None, :]
+    # d(ratio)/dy / y: -1/(eps^2 y) when sticking, -1/y^3 when sliding
+    dr = torch.where(stick, -1.0 / (eps**2 * ysafe), -1.0 / ysafe**3)
+    dr = torch.where(y > 0, dr, torch.zeros_like(dr))
+    hess = bound[:, None, None] * (ratio[:, None, None] * proj + dr[:, None, None] * u[:, :, None] * u[:, None, :])
+    return e, grad, hess
+
+
+def normal_forces(elastic_grad: np.ndarray, normal: np.ndarray, f: np.ndarray, near: float) -> np.ndarray:
+    """The lagged normal force (P,) N of each vertex (module doc): ``max(0, n . g)`` with
+    ``g`` (P, 3) the gradient of every energy but contact and friction (N), ``normal``
+    (P, 3) the unit contact normals and ``f`` (P,) the contact function (m); 0 where ``f``
+    exceeds ``near`` (m: off the body)."""
+    push = np.maximum((elastic_grad * normal).sum(1), 0.0)
+    return np.where(f <= near, push, 0.0)

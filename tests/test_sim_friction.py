@@ -1,0 +1,141 @@
+"""Skin-garment friction (sim.friction): derivatives, the Coulomb law, and the capstan
+equation for a band pulled round a cylinder."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from kgarment.constants import X_MIN
+from kgarment.sim import Motion, SimState, SolverOptions, build_model, solve_states
+from kgarment.sim.friction import friction, normal_forces
+from kgarment.sim.materials import PAPER
+from kgarment.sim.synthetic import cylinder_body
+
+
+def _random_slips(seed=0, p=60, scale=2e-3):
+    g = torch.Generator().manual_seed(seed)
+    x = torch.randn(p, 3, generator=g, dtype=torch.float64) * scale
+    anchor = torch.randn(p, 3, generator=g, dtype=torch.float64) * scale * 0.1
+    n = torch.randn(p, 3, generator=g, dtype=torch.float64)
+    n = n / n.norm(dim=1, keepdim=True)
+    bound = torch.rand(p, generator=g, dtype=torch.float64) + 0.1
+    return x, anchor, n, bound
+
+
+def test_friction_gradient_and_hessian_match_finite_differences():
+    eps = 2e-3
+    x, a, n, b = _random_slips()  # slips on both sides of eps
+    _, g, H = friction(x, a, n, b, eps, order=2)
+    h = 1e-8
+    for k in range(3):
+        d = torch.zeros_like(x)
+        d[:, k] = h
+        ep, gp, _ = friction(x + d, a, n, b, eps, order=1)
+        em, gm, _ = friction(x - d, a, n, b, eps, order=1)
+        assert torch.allclose((ep - em) / (2 * h), g[:, k], rtol=1e-6, atol=1e-9 * float(g.abs().max()))
+        assert torch.allclose((gp - gm) / (2 * h), H[:, :, k], rtol=1e-5, atol=1e-6 * float(H.abs().max()))
+    # positive semi-definite everywhere (no projection needed), and blind to the normal
+    assert float(torch.linalg.eigvalsh(H).min()) > -1e-9 * float(H.abs().max())
+    assert torch.allclose(torch.einsum("pij,pj->pi", H, n), torch.zeros_like(n), atol=1e-9 * float(H.abs().max()))
+
+
+def test_friction_is_coulomb_beyond_the_slip_and_continuous_at_it():
+    eps = 3e-3
+    x, a, n, b = _random_slips(seed=1, scale=2e-3)
+    d = x - a
+    u = d - (d * n).sum(1, keepdim=True) * n
+    y = u.norm(dim=1)
+    _, g, _ = friction(x, a, n, b, eps, order=1)
+    slide = y > eps
+    assert slide.sum() > 10 and (~slide).sum() > 0
+    # sliding: the force has the bound's magnitude, lies in the tangent plane, opposes the slip
+    assert torch.allclose(g.norm(dim=1)[slide], b[slide], rtol=1e-12)
+    assert torch.allclose((g * n).sum(1), torch.zeros_like(b), atol=1e-12)
+    assert bool(((g * u).sum(1)[slide] > 0).all())
+    # sticking: less than the bound, growing to it at y = eps
+    assert bool((g.norm(dim=1)[~slide] < b[~slide]).all())
+    tangent = u / y[:, None]
+    for s in (eps * (1 - 1e-9), eps * (1 + 1e-9)):
+        _, gs, _ = friction(a + s * tangent, a, n, b, eps, order=1)
+        assert torch.allclose(gs.norm(dim=1), b, rtol=1e-6)
+
+
+def test_normal_forces_push_into_the_body_only_near_it():
+    n = np.array([[0.0, 0, 1], [0, 0, 1], [0, 0, 1]])
+    g = np.array([[1.0, 2, 3], [0, 0, -2], [0, 0, 5]])  # dE/dx: into the body, away, into
+    f = np.array([0.0, -1e-4, 0.01])  # on it, inside, 1 cm off it
+    assert np.allclose(normal_forces(g, n, f, near=1e-3), [3.0, 0.0, 0.0])
+
+
+def _band(radius, width, n_phi, n_z):
+    """An open band over half a cylinder (phi in [0, pi], z in [0, width]): vertices, faces,
+    the vertex grid (n_phi + 1, n_z + 1) of indices."""
+    phi = np.linspace(0.0, np.pi, n_phi + 1)
+    z = np.linspace(0.0, width, n_z + 1)
+    P, Z = np.meshgrid(phi, z, indexing="ij")
+    v = np.stack([radius * np.cos(P), radius * np.sin(P), Z], -1).reshape(-1, 3)
+    idx = np.arange(v.shape[0]).reshape(n_phi + 1, n_z + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return v, faces, idx
+
+
+def _uniaxial_tension(stretch, mu, lam):
+    """dW/dlambda of the relaxed (uniaxial) neo-Hookean membrane (method.md section 4):
+    C = diag(l^2, 1/l), J = sqrt(l), W = mu/2 (l^2 + 1/l - 2) - mu ln J + lam/2 (ln J)^2."""
+    s = stretch
+    return mu / 2 * (2 * s - 1 / s**2) - mu / (2 * s) + lam / 4 * np.log(s) / s
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.3])
+def test_a_band_pulled_round_a_cylinder_follows_the_capstan_equation(mu):
+    """A cloth band wrapped half round a cylinder (radius 5 cm), held at one end and pulled
+    2 cm along the tangent at the other: where it slides, its tension falls towards the held
+    end as exp(-mu phi) over the angle it wraps (the capstan equation: pressure = tension /
+    radius); frictionless it is the same everywhere."""
+    R, w = 0.05, 0.01
+    v, faces, idx = _band(R, w, n_phi=48, n_z=2)
+    held = np.arange(len(faces))[np.isin(faces, idx[:2].ravel()).all(1)]
+    pulled = np.arange(len(faces))[np.isin(faces, idx[-2:].ravel()).all(1)]
+    attach = np.concatenate([held, pulled])
+    targets = v[faces[attach]].mean(1)
+    targets[len(held):] += [0.0, -0.02, 0.0]  # at phi = pi the tangent (towards larger phi) is -y
+    bv, bn, bf = cylinder_body(R, -0.05, 0.06, 180, 12)
+    motion = Motion.create("pull", v, bv, bn, attach, targets, bf, garment_faces=faces)
+    model = build_model(v, faces, preset="paper", friction=mu)
+    model = dataclasses.replace(model, friction_slip=2e-5)  # a stiff skin: sliding where the band moves
+    state = SimState.create(motion, (), name="pull")
+    opts = SolverOptions(tol=1e-7, max_iter=400, friction_lags=12)
+    (res,) = solve_states(model, np.full(len(faces), X_MIN), [state], options=opts)
+    assert res.converged
+    x = res.x
+    mid = idx[:, 1]  # the band's centre line, phi = 0 .. pi
+    seg = np.linalg.norm(x[mid[1:]] - x[mid[:-1]], axis=1) / (R * np.pi / 48)
+    m_lame = PAPER.young_cloth / (2 * (1 + PAPER.poisson))
+    l_lame = PAPER.young_cloth * PAPER.poisson / (1 - PAPER.poisson**2)
+    tension = _uniaxial_tension(seg, m_lame, l_lame)  # N per metre of rest width
+    c = 0.5 * (x[mid[1:]] + x[mid[:-1]])
+    phi = np.unwrap(np.arctan2(c[:, 1], c[:, 0]))  # where the segments are now (stretched round)
+    a, b = np.argmin(np.abs(phi - np.pi / 2)), np.argmin(np.abs(phi - 0.8 * np.pi))
+    assert tension[b] > 0
+    assert tension[a] / tension[b] == pytest.approx(np.exp(-mu * (phi[b] - phi[a])), rel=0.02)
+
+
+def test_skin_friction_in_the_problem_file():
+    from kgarment.errors import KgarmentError
+    from kgarment.problem import override
+    from kgarment.problem.parse import parse_problem, problem_to_dict
+
+    p = parse_problem({"materials": {"skin_friction": 0.4}})
+    assert p.materials.skin_friction == 0.4
+    assert problem_to_dict(p)["materials"]["skin_friction"] == 0.4
+    # a problem without it is written as before (its run files and hashes unchanged)
+    assert "skin_friction" not in problem_to_dict(parse_problem({}))["materials"]
+    assert override(parse_problem({}), friction=0.6).materials.skin_friction == 0.6
+    for bad in (-0.1, 3.0, "high"):
+        with pytest.raises(KgarmentError, match=r"\[materials\] skin_friction"):
+            parse_problem({"materials": {"skin_friction": bad}})
