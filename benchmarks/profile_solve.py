@@ -84,13 +84,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--subdivision", type=int, default=2)
     ap.add_argument("--tol", type=float, default=1e-3)
+    ap.add_argument("--lag-contact", action=argparse.BooleanOptionalAction, default=None,
+                    help="the last step's anticipated contact set in the next factorisation (SolverOptions.lag_contact)")
     ap.add_argument("--json", help="merge the figures into this JSON file (e.g. benchmarks/results.json)")
     args = ap.parse_args()
     logging.basicConfig(level=logging.WARNING)
     torch.set_num_threads(1)
     g, model, states = setup(args.subdivision, "paper")
     d0, d1 = designs(g, model.preset.x_min)
-    opts = SolverOptions(tol=args.tol, workers=1, threads=1)
+    opts = SolverOptions(tol=args.tol, workers=1, threads=1, lag_contact=args.lag_contact)
     t0 = time.perf_counter()
     cold = solve_states(model, d0, states, options=opts)
     t_cold = time.perf_counter() - t0
@@ -103,7 +105,9 @@ def main() -> None:
     rest = total - sum(timers[p] for p in PARTS if p != "of which neighbour lists")
     print(f"subdivision {args.subdivision}: {g.n_faces} faces, {model.pattern.n_dof} unknowns; 6 states cold "
           f"{t_cold:.1f} s; warm after a 1.5% design change at tol {args.tol:g}: {total:.1f} s, {newton} Newton "
-          f"iterations ({1e3 * total / max(newton, 1):.0f} ms each), {sum(r.converged for r in warm)}/6 converged")
+          f"iterations ({1e3 * total / max(newton, 1):.0f} ms each), {sum(r.converged for r in warm)}/6 converged; "
+          f"lag_contact {args.lag_contact}; cold Newton iterations {sum(r.convergence.iterations for r in cold)}; "
+          f"energies {' '.join(f'{r.total_energy:.6g}' for r in warm)}")
     row = {"faces": int(g.n_faces), "tol": args.tol, "warm_s": total, "newton_iterations": newton,
            "ms_per_newton_iteration": 1e3 * total / max(newton, 1)}
     for p in PARTS + ("rest",):

@@ -73,6 +73,7 @@ from kgarment.sim.options import Convergence, SolverOptions
 
 log = logging.getLogger(__name__)
 STALL = 10  # iterations without any energy decrease (beyond round-off) that end a solve
+LAG_SLACK = 1e-5  # mean edges: how far outside the surface a lagged vertex may end before it counts as pulled in
 STUCK_SHIFT = 100.0  # a shift (relative to the local stiffness) at which the exact Hessian has got stuck
 
 
@@ -96,6 +97,7 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
     scale = prob.dof_stiffness  # (3N,) local membrane stiffness Y t, N/m
     floor = opts.damping_min * k_ref
     E, g, H = prob.evaluate(x, order=2, exact=exact)
+    hover = np.zeros(0, np.int64)  # vertices the last step's anticipation brought onto the surface
     history: list[float] = []
     converged = False
     it = 0
@@ -122,11 +124,14 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
                       fmax, STALL)
             break
         rhs = g.reshape(-1).cpu().numpy()
+        lin = prob.contact_linearization(x) if opts.passes > 0 else None
+        lagged = _lagged(prob, hover, lin, H, rhs) if opts.lagged else None
+        Hs, rhs_s = (H, rhs) if lagged is None else lagged[1:]
         dx = None
         if exact:  # exact Hessian, shifted until positive definite (Nocedal-Wright 3.3)
             t = tau
             for _ in range(opts.max_shifts):
-                dx = _solve(linsolver, H, rhs, t * scale + floor)
+                dx = _solve(linsolver, Hs, rhs_s, t * scale + floor)
                 if dx is not None:
                     break
                 failed = (max(failed[0], t), it)
@@ -138,13 +143,20 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
                 tau = t
         if dx is None:
             for _ in range(20):
-                dx = _solve(linsolver, H, rhs, mu * scale + floor)
+                dx = _solve(linsolver, Hs, rhs_s, mu * scale + floor)
                 if dx is not None:
                     break
                 mu = max(mu * 10.0, 1e-6)
             else:
                 break
-        dx = _anticipate(prob, x, H, rhs, dx, linsolver, opts.passes)
+        dx, hover = _anticipate(prob, x, Hs, rhs, dx, linsolver, opts.passes, lin,
+                                None if lagged is None else lagged[0], rhs_s)
+        if dx is None:  # the lagged contact set did not hold: the step without it
+            shift = (tau if exact else mu) * scale + floor
+            dx = _solve(linsolver, H, rhs, shift)
+            if dx is None:
+                continue
+            dx, hover = _anticipate(prob, x, H, rhs, dx, linsolver, opts.passes, lin)
         move = np.sqrt((dx.reshape(-1, 3) ** 2).sum(1).max())
         if move > max_move:
             dx *= max_move / move
@@ -225,7 +237,25 @@ def _solve(linsolver: SparseCholesky, H: np.ndarray, rhs: np.ndarray, shift: np.
     return dx if np.all(np.isfinite(dx)) else None
 
 
-def _anticipate(prob: StateProblem, x, H, rhs, dx, linsolver, passes: int):
+def _lagged(prob: StateProblem, hover: np.ndarray, lin, H: np.ndarray, rhs: np.ndarray):
+    """The contact model of the last step's anticipated vertices that are not in contact
+    now (``hover`` (a,), e.g. on the surface to round-off, just outside it): (their ids,
+    Hessian values with the penalty's Gauss-Newton block, right-hand side with its gradient
+    term), or None where there are none.  See :func:`_anticipate`."""
+    if lin is None or len(hover) == 0:
+        return None
+    f, gf = lin
+    idx = hover[f[hover] >= 0.0]
+    if len(idx) == 0:
+        return None
+    rhs2 = rhs.copy()
+    r = rhs2.reshape(-1, 3)
+    r[idx] += (2.0 * prob.model_k_contact[idx] * f[idx])[:, None] * gf[idx]
+    return idx, prob.add_contact_stiffness(H, idx, gf[idx]), rhs2
+
+
+def _anticipate(prob: StateProblem, x, H, rhs, dx, linsolver, passes: int, lin=None,
+                lagged: np.ndarray | None = None, rhs_lagged: np.ndarray | None = None):
     """Re-solve with the contact stiffness the step is about to meet.
 
     The Hessian has contact stiffness only where a vertex already penetrates; a step that
@@ -238,12 +268,36 @@ def _anticipate(prob: StateProblem, x, H, rhs, dx, linsolver, passes: int):
     step predicts).  Vertices moving outward are left free.  The result is used only if
     it is a descent direction of the true energy.  (Giving the stiffness without the
     gradient term, or to every vertex near the surface, stalls lift-off: measured.)
+
+    The vertices a step brought onto the surface mostly end there to round-off, outside
+    it as often as inside, and the next step presses them in again: one more
+    factorisation (or Woodbury update) per iteration for the same vertices.  With
+    ``SolverOptions.lagged`` the next iteration's first factorisation carries their
+    quadratic model already (``lagged`` (a,), ``H`` and ``rhs_lagged`` with it, ``dx``
+    solved with it; :func:`_lagged`).  Where the step would pull one of them *into*
+    contact from outside (``f + grad f . dx > LAG_SLACK`` mean edges with the model on: it
+    is lifting off), it is not lagged again, so it lifts off one step later; where the
+    direction is not a descent direction of the true energy, the result is None and the
+    caller solves without the lagged set.  ``rhs`` is always the true gradient.  (Solving
+    again without the set wherever one vertex lifts off cost a factorisation in a quarter
+    of the iterations and saved less: measured.)
+
+    Returns the direction (or None) and the vertices its contact model holds (for the next
+    iteration's ``lagged``).
     """
+    none = np.zeros(0, np.int64)
     if passes <= 0:
-        return dx
-    f, gf = prob.contact_linearization(x)
+        return dx, none
+    f, gf = prob.contact_linearization(x) if lin is None else lin
     added = f < 0
-    rhs2 = rhs.copy()
+    rhs2 = rhs.copy() if lagged is None else rhs_lagged.copy()
+    held = []
+    if lagged is not None:
+        if not float(rhs @ dx) < 0.0:
+            return None, none
+        pred = f[lagged] + (gf[lagged] * dx.reshape(-1, 3)[lagged]).sum(1)
+        added[lagged] = True
+        held.append(lagged[pred <= LAG_SLACK * prob.model.mean_edge])  # the others lift off next
     best = dx
     for _ in range(passes):
         pred = f + (gf * dx.reshape(-1, 3)).sum(1)
@@ -252,6 +306,7 @@ def _anticipate(prob: StateProblem, x, H, rhs, dx, linsolver, passes: int):
             break
         added |= new
         idx = np.nonzero(new)[0]
+        held.append(idx)
         H = prob.add_contact_stiffness(H, idx, gf[idx])
         k2 = 2.0 * prob.model_k_contact[idx]
         r = rhs2.reshape(-1, 3)
@@ -269,4 +324,4 @@ def _anticipate(prob: StateProblem, x, H, rhs, dx, linsolver, passes: int):
         dx = -d2
         if float(rhs @ dx) < 0.0:
             best = dx
-    return best
+    return best, (np.concatenate(held) if held else none)
