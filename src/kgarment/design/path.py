@@ -6,7 +6,8 @@ same in simulation: the motion's bone rotations are scaled by ``t = 1/K, 2/K, ..
 (:meth:`kgarment.body.Motion.at`: the skinning transforms are interpolated, not the
 vertices), the body is posed in each frame, and the design's equilibrium is solved frame
 after frame, ON (the motion's activation set) and OFF, each frame starting from the
-previous frame's equilibrium.  Per frame: the garment's total energy (J) and the tension
+previous frame's equilibrium carried with the body (moved as the skin-tight garment moves
+between the two frames, :func:`carried`).  Per frame: the garment's total energy (J) and the tension
 in every clutch (N, :func:`kgarment.sim.clutch_tensions`).
 
 The rest pose (t = 0) is a frame too (:func:`rest_frames`): the lowest equilibrium from the
@@ -279,7 +280,8 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
             report(f"frame {i + 1}/{frames} (t = {(i + 1) / frames:.2f})")
         keys = [(m, s, i) for m in motions for s in STATES]
         states = [state(by_motion[m][i][0], m, s) for m, s, _ in keys]
-        warm = [results[(m, s, i - 1)].x if i > 0 else None for m, s, _ in keys]
+        warm = [carried(model, results[(m, s, i - 1)].x, sim_motions[by_motion[m][i - 1][0]], st.motion)
+                if i > 0 else None for (m, s, _), st in zip(keys, states)]
         solved = solve_states(model, design, states, warm_start=warm, options=setup.solver)
         retry = [j for j, r in enumerate(solved) if not r.converged]
         if retry:  # the evaluator's two starts (skin-tight, fully reinforced garment)
@@ -306,6 +308,13 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         if model.slips else ()
     ends = {(m, s): results[(m, s, frames - 1)] for m in motions for s in STATES}
     return PathReport(tuple(names), tuple(out), holding_n, ends)
+
+
+def carried(model, x: np.ndarray, before, after) -> np.ndarray:
+    """An equilibrium x (N, 3) of the frame ``before`` (a sim Motion) carried to the frame
+    ``after``: moved as the skin-tight garment (and its clutches) moves from one to the
+    other, the warm start of the next frame's solve."""
+    return x + model.initial_positions(after.garment_x0) - model.initial_positions(before.garment_x0)
 
 
 def motion_ends(setup, design: np.ndarray, keyed, results: list, options) -> tuple[list, int]:
