@@ -100,5 +100,5 @@ PLAN_LOCK = 0.5         # a set "locks" another motion where it resists it with 
 UNCONTROLLABLE = 0.005  # a motion where switching the clutches ON changes the fully reinforced garment's
                         # energy by less than this share is reported as one they cannot control
                         # (kgarment.design.control; measured with SIM_MODEL 2, paper preset, subdivision
-                        # 0: shirt motions 0.9-3.8%, a 120-degree overhead reach 0.31%; with model 1:
+                        # 0: shirt motions 1.4-4.2%, a 120-degree overhead reach 0.34% (design.control); with model 1:
                         # shirt 1-3% with either preset, sleeves 6-14%, the reach 0.04-0.07%)
