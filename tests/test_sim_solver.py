@@ -365,3 +365,32 @@ def test_solves_run_blas_on_one_thread():
     pool = parallel._pool(2)
     counts = [pool.submit(_blas_thread_counts).result() for _ in range(4)]
     assert all(set(c) == {1} for c in counts)
+
+
+def test_the_lagged_contact_set_reaches_the_same_equilibrium(monkeypatch):
+    """Newton's lagged contact set (``SolverOptions.lag_contact``, newton._anticipate) only
+    changes the route: a sheet pressed onto a sphere (one equilibrium) solved with and
+    without it lands on the same equilibrium once both are solved on to 1e-7, and the lag
+    was used on the way."""
+    from kgarment.sim import newton
+
+    used = []
+    real = newton._lagged
+
+    def counting(*a, **k):
+        out = real(*a, **k)
+        used.append(out is not None)
+        return out
+
+    monkeypatch.setattr(newton, "_lagged", counting)
+    model, _motion, state = sheet_scene("paper", pull=0.02)
+    d = np.full(model.n_faces, 0.001)
+    ends = []
+    for lag in (True, False):
+        (coarse,) = solve_states(model, d, [state], options=SolverOptions(tol=1e-3, lag_contact=lag))
+        (fine,) = solve_states(model, d, [state], warm_start=[coarse], options=SolverOptions(tol=1e-7))
+        assert coarse.converged and fine.converged
+        ends.append(fine)
+    assert any(used)
+    assert abs(ends[0].total_energy - ends[1].total_energy) < 1e-7 * abs(ends[1].total_energy)
+    assert np.abs(ends[0].x - ends[1].x).max() < 1e-5 * np.ptp(ends[1].x, axis=0).max()
