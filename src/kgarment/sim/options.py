@@ -112,10 +112,10 @@ class SolverOptions:
     def lagged(self) -> bool:
         """Whether Newton lags the anticipated contact set (``lag_contact``, or by tolerance).
         Measured on the main job (subdivision 0, 2 workers, 2026-11-26, back to back): the
-        design loop in 96 s and 5,043 Newton iterations against 133 s and 5,931; below 1e-3
-        it stalls (5 of the 6 fully reinforced states stopped at residuals 1.1-1.8e-4 against
-        the evaluation's 1e-4: a vertex held on the surface one step too long, again and
-        again), hence not there."""
+        design loop in 91 s and 5,117 Newton iterations against 152 s and 6,338.  Lagged at
+        the final evaluation's 1e-4 too it stalled (5 of the 6 fully reinforced states
+        stopped at residuals 1.1-1.8e-4: a vertex held on the surface one step too long,
+        again and again), hence not below 1e-3."""
         if self.lag_contact is not None:
             return self.lag_contact
         return self.tol >= 1e-3

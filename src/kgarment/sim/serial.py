@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import torch
 
+from kgarment.constants import FRICTION_SETTLED
 from kgarment.sim.assembly import SparseCholesky
 from kgarment.sim.energy import TERMS, StateProblem
 from kgarment.sim.lbfgs import lbfgs_solve
@@ -133,7 +134,6 @@ def _with_friction(prob: StateProblem, x0: np.ndarray, options: SolverOptions, l
     equilibrium), then from each equilibrium, re-solving until no bound moved by more than
     ``FRICTION_SETTLED`` of the largest or ``options.friction_lags`` re-solves are done;
     iterations and time add up."""
-    from kgarment.constants import FRICTION_SETTLED
 
     def lag(x):
         return prob.friction_lag(torch.as_tensor(np.asarray(x, dtype=np.float64), device=prob.device))
@@ -148,8 +148,7 @@ def _with_friction(prob: StateProblem, x0: np.ndarray, options: SolverOptions, l
         bound, normal = new, new_normal
         prob.set_friction(bound, normal)
         x, rec2 = _solve(prob, x, options, linsolver)
-        rec = replace(rec2, iterations=rec.iterations + rec2.iterations, wall_time=rec.wall_time + rec2.wall_time,
-                      evaluations=rec.evaluations + rec2.evaluations)
+        rec = _spent(rec2, rec, rec2)
     log.debug("state %s: friction bounds up to %.3g N over %d vertices", prob.name, bound.max(initial=0.0),
               int((bound > 0).sum()))
     return x, rec
@@ -162,5 +161,10 @@ def _rescue(prob, x0, x, rec, options, linsolver):
              prob.name, rec.residual, options.rescue_shifts)
     x2, rec2 = newton_solve(prob, x0, replace(options, max_shifts=options.rescue_shifts), linsolver)
     best_x, best = (x2, rec2) if rec2.converged or rec2.residual < rec.residual else (x, rec)
-    return best_x, replace(best, iterations=rec.iterations + rec2.iterations, wall_time=rec.wall_time + rec2.wall_time,
-                           evaluations=rec.evaluations + rec2.evaluations)
+    return best_x, _spent(best, rec, rec2)
+
+
+def _spent(kept: Convergence, *solves: Convergence) -> Convergence:
+    """The record ``kept`` with the iterations, time and evaluations of all ``solves``."""
+    return replace(kept, iterations=sum(r.iterations for r in solves), wall_time=sum(r.wall_time for r in solves),
+                   evaluations=sum(r.evaluations for r in solves))
