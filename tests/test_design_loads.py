@@ -158,3 +158,29 @@ def test_the_control_plan_keeps_a_lower_known_equilibrium(tube, tube_loads):
     higher = make_plan(evaluator, design, known={("pull", "on"): scaled(1.1)})
     assert higher.from_path == () and higher.to_json()["from_path"] == []
     assert higher.all_on("pull").energy_J == pytest.approx(g.energy_on_J, rel=1e-6)
+
+
+def test_a_design_already_solved_in_a_state_is_not_solved_again(tube, monkeypatch):
+    """The evaluator keeps its design equilibria by content (``kgarment evaluate --path``
+    solves the target's equilibria for the force over the motion, then evaluates there):
+    the same design in the same states costs no solve and gives the same numbers; another
+    design or another activation is solved."""
+    evaluator, design = tube
+    ev = Evaluator(evaluator.setup)
+    first = ev.evaluate(design)
+    calls = []
+    real = DesignSetup.solve
+    monkeypatch.setattr(DesignSetup, "solve", lambda self, *a, **k: calls.append(len(a[1])) or real(self, *a, **k))
+    again = ev.evaluate(design)
+    assert calls == []
+    assert [s.energy for s in again.states] == [s.energy for s in first.states]
+    assert [s.result.name for s in again.states] == [s.result.name for s in first.states]
+    other = design.copy()
+    other[np.flatnonzero(design < 0.5)[0]] = 1.0
+    ev.evaluate(other)
+    assert sum(calls) == 2 * len(first.states)  # two starts per state
+    half = ev.activation_states([0.5, 0.0], label="half")
+    ev.reference(half)  # the fully reinforced garment under the new activation first
+    calls.clear()
+    ev.equilibria(design, half)
+    assert calls == [2]

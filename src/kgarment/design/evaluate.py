@@ -28,7 +28,9 @@ skin-tight start at 0.444 J (rho ON 0.889).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import logging
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -44,6 +46,7 @@ from kgarment.sim import SimState, StateResult
 log = logging.getLogger(__name__)
 CONTINUATION = (0.0, 0.25, 0.5, 0.75, 1.0)
 MULTISTABLE = 0.01  # two equilibria whose total energies differ by more than this (relative) are reported
+KEPT = 64  # design equilibria an Evaluator keeps (the most recently used; :meth:`Evaluator.solve_design`)
 
 
 @dataclass(frozen=True)
@@ -184,12 +187,16 @@ class Evaluator:
     """Evaluates designs of one garment (see the module docstring).
 
     setup : a DesignSetup built with ``purpose="evaluate"`` (``from_problem`` builds one);
-    the fully reinforced equilibria are solved on first need and kept per state.
+    the fully reinforced equilibria are solved on first need and kept per state, and the
+    last :data:`KEPT` design equilibria from the two starts are kept too (by design and
+    state content: ``kgarment evaluate --path`` solves the target's equilibria for the
+    force over the motion and evaluates the same design there next).
     """
 
     def __init__(self, setup: DesignSetup):
         self.setup = setup
         self._reference: dict[StateKey, StateResult] = {}
+        self._kept: OrderedDict[tuple, Equilibrium] = OrderedDict()
 
     @classmethod
     def from_problem(cls, problem: Problem, *, body=None, garment=None, strips=None, device: str = "cpu",
@@ -268,7 +275,27 @@ class Evaluator:
         """Equilibria of ``design`` (m,) in ``keyed`` states from two starts (module
         docstring): the skin-tight garment and ``starts`` (per state (N, 3) positions;
         default: the fully reinforced garment's equilibria).  A fully reinforced design
-        returns the reference equilibria."""
+        returns the reference equilibria.  With the default starts, a state this evaluator
+        has solved for the same design (the same values, pose, attachments and activation)
+        is not solved again."""
+        if starts is not None or np.all(design > 0.5):
+            return self._solve_design(design, keyed, starts)
+        d = hashlib.blake2b(np.ascontiguousarray(design, dtype=np.float64).tobytes(), digest_size=12).hexdigest()
+        ids = [(d, k, state_digest(s)) for k, s in keyed]
+        todo = [i for i, key in enumerate(ids) if key not in self._kept]
+        if todo:
+            for i, e in zip(todo, self._solve_design(design, [keyed[i] for i in todo])):
+                self._kept[ids[i]] = e
+        for key in ids:
+            self._kept.move_to_end(key)
+        out = [dataclasses.replace(self._kept[key], result=dataclasses.replace(self._kept[key].result, name=s.name))
+               for key, (_, s) in zip(ids, keyed)]  # under this call's state names
+        while len(self._kept) > KEPT:
+            self._kept.popitem(last=False)
+        return out
+
+    def _solve_design(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]],
+                      starts: list[np.ndarray] | None = None) -> list[Equilibrium]:
         if np.all(design > 0.5):
             return [Equilibrium(r) for r in self.reference(keyed)]
         states = [s for _, s in keyed]
@@ -356,6 +383,16 @@ class Evaluator:
             solid, tuple(rows), float(setup.areas[solid].sum() / setup.areas.sum()), shape["islands"],
             shape["islands_with_clutches"], shape["clutch_ends_supported"], shape["clutch_ends"],
             by_wearer=shape.get("by_wearer"))
+
+
+def state_digest(state: SimState) -> str:
+    """A digest of what a state's equilibrium depends on besides the design: the posed
+    body, the skin-tight garment, its attachments and the clutch activation (not the name)."""
+    m = state.motion
+    h = hashlib.blake2b(m.body.key.encode(), digest_size=12)
+    for a in (m.garment_x0, m.attach_faces, m.attach_targets, np.asarray(state.activation, dtype=np.float64)):
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
 
 
 def activation_continuation(setup: DesignSetup, design: np.ndarray, states: list[SimState],
