@@ -21,9 +21,6 @@ def frame_motions(problem, motions, frames: int, rest: bool = False,
     with ``rest`` also the rest pose, shared by every motion, as frame :data:`REST` (not in
     the list).  ``attached`` : (m,) bool, the garment's attached faces where they are not
     the problem's (the studio's painted attachments)."""
-    from kgarment.body.anny_backend import load_anny_body
-    from kgarment.problem import build_garment
-
     if problem.body.model != "anny":
         raise KgarmentError("the motion from rest (--path, [solver] path_start) needs a posable body (body "
                             "model 'anny'): a mesh sequence has only the target poses")
@@ -39,6 +36,30 @@ def frame_motions(problem, motions, frames: int, rest: bool = False,
             index.append((label, name, t))
     if rest and motions:
         poses.append(BodyMotion(REST, (lib[motions[0]].at(0.0),)))
+    return _posed(problem, poses, attached), index
+
+
+def early_motions(problem) -> dict:
+    """{``MOTION@t``: kgarment.sim.Motion}: the garment on the body posed at the share t of
+    each motion of ``problem``'s ``[design] early`` (empty without it)."""
+    if not problem.design.early:
+        return {}
+    lib = {m.name: m for m in problem.motion_list()}
+    poses = [BodyMotion(early_name(m, t), (lib[m].at(t),)) for m, t in problem.design.early]
+    return _posed(problem, poses)
+
+
+def early_name(motion: str, t: float) -> str:
+    """The design state name of ``motion`` at the share ``t`` of its movement."""
+    return f"{motion}@{t:.2f}"
+
+
+def _posed(problem, poses, attached=None) -> dict:
+    """{pose name: kgarment.sim.Motion}: ``problem``'s garment on its Anny body posed as
+    ``poses`` (body motions); ``attached`` as in :func:`frame_motions`."""
+    from kgarment.body.anny_backend import load_anny_body
+    from kgarment.problem import build_garment
+
     body = load_anny_body(poses, problem.body.phenotype)
     garment = build_garment(problem, body)
     if attached is not None:
@@ -46,4 +67,4 @@ def frame_motions(problem, motions, frames: int, rest: bool = False,
         if mask.shape != garment.attached.shape:
             raise KgarmentError(f"{mask.size} attachment flags for a garment of {garment.attached.size} faces")
         garment = dataclasses.replace(garment, attached=mask)
-    return garment_motions(body, garment), index
+    return garment_motions(body, garment)

@@ -52,7 +52,9 @@ def finish_run(run: Path, setup, st, body, garment, strips, iteration: int, equi
                                faces_near(body.rest_vertices, body.faces, garment.rest_vertices), garment.rest_vertices,
                                garment.faces, design, clutches=[(c.vertices, c.faces) for c in strips],
                                title=f"{garment.name}: final design (iteration {iteration})"))
-    keyed = setup.states()
+    # the motions the body is posed in (and a multi-body design's wearers): not the
+    # beginnings of motions that [design] early adds to the objective
+    keyed = [(k, s) for k, s in setup.states() if k[0] in setup.wearers or k[0] in body.motion_names]
     if equilibria is None or any(k not in equilibria for k, _ in keyed):
         states = [s for _, s in keyed]
         solved = setup.solve(design, states, warm_start=[st.warm.get(s.name) for s in states])

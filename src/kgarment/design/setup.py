@@ -257,6 +257,11 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
     if problem.body.phenotypes:
         motions, activation, wearers = wearer_motions(problem, body, garment, strips, model, motions, activation,
                                                       specs)
+    if purpose == "design" and d.early:  # the beginnings of motions: more motions of the objective
+        from kgarment.design.frames import early_motions, early_name
+
+        motions = {**motions, **early_motions(problem)}
+        activation = {**activation, **{early_name(m, t): activation[m] for m, t in d.early if m in activation}}
     path_start = problem.solver.path_start if purpose == "design" and d.objective != "passive" else 0
     path_frames = {}
     if path_start:

@@ -62,6 +62,13 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
     clutches = _clutches(data["clutches"], base) if "clutches" in data else None
     design = _design(data.get("design", {}))
     _check_levels(design.levels, garment.subdivision)
+    bad = [m for m, _ in design.early if m not in names]
+    if bad:
+        raise KgarmentError(f"[design] early: {bad[0]!r} is not a motion of the problem; its motions: "
+                            f"{', '.join(names)}")
+    if design.early and (body.phenotypes or body.model != "anny"):
+        raise KgarmentError("[design] early: the beginning of a motion is posed on one Anny body (leave early out "
+                            "for a multi-body design or a mesh-sequence body)")
     if design.levels and body.phenotypes:
         raise KgarmentError("[design] levels: coarse-to-fine is for one body; a multi-body design ([body] "
                             "phenotypes) runs at its garment's subdivision (leave levels out)")
@@ -287,13 +294,25 @@ def _subdivision(sub) -> int:
 def _design(d: dict) -> DesignSpec:
     """[design]: the objective, protection and the BESO fields (flat keys) -> DesignSpec."""
     beso_keys = {f.name for f in dataclasses.fields(BesoParams)}
-    own = {f.name for f in dataclasses.fields(DesignSpec)} - {"beso", "levels"}
-    check_keys("design", d, sorted(own) + ["levels"] + [f.name for f in dataclasses.fields(BesoParams)])
+    own = {f.name for f in dataclasses.fields(DesignSpec)} - {"beso", "levels", "early"}
+    check_keys("design", d, sorted(own) + ["levels", "early"] + [f.name for f in dataclasses.fields(BesoParams)])
     ranges = C.DESIGN_RANGES
     beso = section(BesoParams, "design", {k: v for k, v in d.items() if k in beso_keys}, {"filter": FILTERS}, ranges)
     rest = section(_DesignOwn, "design", {k: v for k, v in d.items() if k in own},
                    {"objective": OBJECTIVE_NAMES, "combine": COMBINE_NAMES}, ranges)
-    return DesignSpec(beso=beso, **asdict(rest), levels=_levels(d.get("levels", [])))
+    return DesignSpec(beso=beso, **asdict(rest), levels=_levels(d.get("levels", [])), early=_early(d.get("early", {})))
+
+
+def _early(v) -> tuple[tuple[str, float], ...]:
+    """[design] early = {MOTION = t, ...}: t in (0, 1) (the motions are checked against
+    [motions] use in :func:`parse_problem`)."""
+    if not isinstance(v, dict):
+        raise KgarmentError(f"[design] early = {v!r} must be a table of motion = share of the motion in (0, 1), "
+                            'e.g. { "arm_flexion.right" = 0.33 }')
+    for m, t in v.items():
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not 0.0 < t < 1.0:
+            raise KgarmentError(f"[design] early: {m} = {t!r}; the share of the motion must be a number in (0, 1)")
+    return tuple((str(m), float(t)) for m, t in v.items())
 
 
 def _levels(v) -> tuple[int, ...]:

@@ -163,7 +163,12 @@ class DesignSpec:
     by more than this share is taken back (0: off; :mod:`kgarment.design.guard`);
     combine : how the motions' terms make the objective: "sum" (the paper's) or
     "product" (each motion's sensitivities weighted by the inverse of its term, so that no
-    motion is given up for the others; :mod:`kgarment.design.objective`).
+    motion is given up for the others; :mod:`kgarment.design.objective`);  early :
+    ((motion, t), ...) motions also designed for at the share t in (0, 1) of their
+    movement (the body posed part of the way; one more motion ``MOTION@t`` of the design
+    objective, ON with the motion's clutch set and OFF; design runs only, evaluations stay
+    at the target poses): a design that holds the beginning of the motion anchors its
+    clutches before the end can find another equilibrium (README, "Design runs").
     """
 
     objective: str = "active"
@@ -175,6 +180,7 @@ class DesignSpec:
     levels: tuple[int, ...] = ()
     guard: float = 0.0
     combine: str = "sum"
+    early: tuple[tuple[str, float], ...] = ()
 
     def flat(self) -> dict:
         """The [design] table as written in a problem file (BESO fields flattened)."""
@@ -191,6 +197,8 @@ class DesignSpec:
             out["guard"] = self.guard
         if self.combine != "sum":
             out["combine"] = self.combine
+        if self.early:
+            out["early"] = dict(self.early)
         return out
 
 

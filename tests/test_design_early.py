@@ -1,0 +1,59 @@
+"""``[design] early``: a motion also designed for part of the way (the body posed at a
+share t of its movement), as one more motion of the design objective."""
+
+from __future__ import annotations
+
+import tomllib
+
+import numpy as np
+import pytest
+from tiny_problems import TINY_SLEEVE
+
+from kgarment.design.frames import frame_motions
+from kgarment.design.setup import setup_from_problem
+from kgarment.errors import KgarmentError
+from kgarment.problem import build_clutches, build_garment, parse_problem, problem_to_dict
+
+EARLY = TINY_SLEEVE + """[design]
+early = { "arm_flexion.right" = 0.5 }
+"""
+
+
+def test_parsed_written_and_read_back():
+    p = parse_problem(tomllib.loads(EARLY))
+    assert p.design.early == (("arm_flexion.right", 0.5),)
+    assert parse_problem(problem_to_dict(p)).design.early == p.design.early
+    assert "early" not in problem_to_dict(parse_problem(tomllib.loads(TINY_SLEEVE)))["design"]  # hashes stay
+
+
+@pytest.mark.parametrize(("value", "says"), [
+    ('{ "arm_raise" = 0.5 }', "not a motion of the problem; its motions: arm_flexion.right"),
+    ('{ "arm_flexion.right" = 1.0 }', "a number in (0, 1)"),
+    ('{ "arm_flexion.right" = "half" }', "a number in (0, 1)"),
+    ("0.5", "must be a table of motion = share"),
+])
+def test_bad_early_is_one_line_naming_what_is_allowed(value, says):
+    with pytest.raises(KgarmentError) as e:
+        parse_problem(tomllib.loads(TINY_SLEEVE + f"[design]\nearly = {value}\n"))
+    assert says in str(e.value) and "\n" not in str(e.value)
+
+
+def test_the_early_pose_is_the_motion_part_of_the_way_in_design_runs_only(anny_body):
+    """The design setup has the motion at t = 0.5 as one more motion, ON (the motion's
+    clutch set) and OFF, its garment where the force over the motion poses it at t = 0.5
+    (an independent route: the path's frames); an evaluation has the target poses only."""
+    p = parse_problem(tomllib.loads(EARLY))
+    g = build_garment(p, anny_body)
+    strips = build_clutches(p, anny_body, g)
+    setup = setup_from_problem(p, anny_body, g, strips, "design")
+    keys = [k for k, _ in setup.states()]
+    assert keys == [("arm_flexion.right", "on"), ("arm_flexion.right", "off"),
+                    ("arm_flexion.right@0.50", "on"), ("arm_flexion.right@0.50", "off")]
+    frames, _ = frame_motions(p, ["arm_flexion.right"], 2)
+    early = setup.motions["arm_flexion.right@0.50"].garment_x0
+    assert np.array_equal(early, frames["arm_flexion.right@0.500"].garment_x0)
+    last, target = frames["arm_flexion.right@1.000"].garment_x0, setup.motions["arm_flexion.right"].garment_x0
+    assert np.array_equal(last, target) and np.abs(early - target).max() > 1e-3
+    on = dict(setup.states())
+    assert on[("arm_flexion.right@0.50", "on")].activation == on[("arm_flexion.right", "on")].activation
+    assert [k for k, _ in setup_from_problem(p, anny_body, g, strips, "evaluate").states()] == keys[:2]
