@@ -254,6 +254,17 @@ def test_an_experiment_run_again_keeps_what_it_took_before():
     assert _add_times({"phase_seconds": {"designs": 2.0}, "wall_seconds": 2.0}, None)["wall_seconds"] == 2.0
 
 
+def test_an_experiment_started_afresh_does_not_inherit_the_old_entrys_time(tmp_path):
+    """A committed entry whose run folder is gone (a fresh clone) is replaced, not continued."""
+    from kgarment.reproduce.pipeline import continued
+
+    old = {"arm_flexion": {"phase_seconds": {"designs": 2845.0}}}
+    assert continued("arm_flexion", old, tmp_path) is None
+    assert continued("arm_extension", old, tmp_path) is None
+    (tmp_path / "runs" / "arm_flexion").mkdir(parents=True)
+    assert continued("arm_flexion", old, tmp_path) is old["arm_flexion"]
+
+
 def _plan(rows):
     """A clutch-set table as kgarment plan writes it: rows (motion, clutches, resistance J)."""
     return {"clutches": ["a", "b"], "keep": 0.9, "motions": {},

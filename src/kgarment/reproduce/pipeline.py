@@ -195,8 +195,9 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
     for exp in select(None):  # the canonical order, earlier invocations' experiments included
         if exp.name in asked and run_again(exp.name, bool(experiments), old, out):
             log.info("experiment %s (%s resolution)", exp.name, res.name)
+            before = continued(exp.name, old, out)  # before the run creates its folder
             results[exp.name] = _add_times(run_experiment(exp, res, out, cache, device, progress, overrides),
-                                           old.get(exp.name))
+                                           before)
             done = {n: results[n] if n in results else old[n] for n in BY_NAME if n in results or n in old}
             # an experiment finished is never lost; the cross-evaluations follow at the end
             _write(out, _document(res, done, {}, t0, device))
@@ -221,10 +222,18 @@ def run_again(name: str, named: bool, old: dict, out: Path) -> bool:
     return named or name not in old or (Path(out) / "runs" / name).is_dir()
 
 
+def continued(name: str, old: dict, out: Path) -> dict | None:
+    """The data.json entry (of ``old``) that running experiment ``name`` again continues: the
+    entry when its run folder is there (the rerun reuses those runs, so their time counts),
+    None when it is not (a committed report after a fresh clone: the experiment starts afresh
+    and replaces the entry, its earlier time is not this run's)."""
+    return old.get(name) if (Path(out) / "runs" / name).is_dir() else None
+
+
 def _add_times(entry: dict, before: dict | None) -> dict:
     """``entry`` with the wall seconds of each phase spent on it by earlier invocations
-    (``before``, its data.json entry) added: a run again that reuses everything costs ~0 s
-    and must not hide what the experiment took."""
+    (``before``, its data.json entry, when the run continues that entry's run folders) added:
+    a run again that reuses everything costs ~0 s and must not hide what the experiment took."""
     if before and before.get("phase_seconds"):
         for k, v in before["phase_seconds"].items():
             entry["phase_seconds"][k] = entry["phase_seconds"].get(k, 0.0) + v
