@@ -50,6 +50,20 @@ def test_sets_and_lock_states():
                                                                                           ("twist", "on")]
 
 
+def test_a_set_two_motions_share_is_one_lock_state():
+    """A motion pays once for each other set, however many motions switch it (an early
+    pose of a motion shares the motion's set): the same switch state is not counted twice."""
+    tube = Tube(0.05, 0.0, 0.3, 16, 9)
+    clutches = [tube.clutch("a", 0.0, 0.08, 0.22, 0.01, 8), tube.clutch("b", np.pi, 0.08, 0.22, 0.01, 8)]
+    model = build_model(tube.vertices, tube.faces, clutches, preset="paper")
+    motions = {"pull": tube.motion("pull", 0.05, 0.0), "twist": tube.motion("twist", 0.0, 0.3),
+               "twist@0.33": tube.motion("twist@0.33", 0.0, 0.1)}
+    sets = {"pull": np.array([1.0, 0.0]), "twist": np.array([0.0, 1.0]), "twist@0.33": np.array([0.0, 1.0])}
+    s = DesignSetup.build(model, motions, "active", BesoParams(), SolverOptions(), activation=sets, lockout=1.0)
+    locks = [k for k, _ in s.states() if k[1].startswith("lock:")]
+    assert locks == [("pull", "lock:twist"), ("twist", "lock:pull"), ("twist@0.33", "lock:pull")]
+
+
 def test_the_lockout_subtracts_what_other_sets_store():
     """Per motion: (ON - OFF - w * sum(LOCK - OFF)) / max(ON sensitivity), summed; the
     scalar objective likewise over the fully reinforced garment's ON energy."""

@@ -185,7 +185,8 @@ class DesignSetup:
     def states(self, motions=None) -> list[tuple[StateKey, SimState]]:
         """[((motion, state), SimState)] the objective needs, for ``motions`` (default all):
         ON (the motion's activation set), OFF, or none; with a lockout, the motion under
-        every other motion's set that differs from its own (``lock:OTHER``); with a balance
+        every other set than its own, each set once, named by the first motion that has it
+        (``lock:OTHER``: ``[design] early`` poses share their motion's set); with a balance
         and a set of two clutches or more, the motion with each clutch of its set alone ON at
         its set's value (``solo:CLUTCH``)."""
         out = []
@@ -194,10 +195,11 @@ class DesignSetup:
                 g = self.on_activation(name) if s == "on" else np.zeros(self.n_clutches)
                 out.append(((name, s), SimState.create(self.motions[name], g, name=f"{name}[{s}]")))
             if self.objective == "active" and self.lockout > 0:
-                own = self.on_activation(name)
+                seen = [self.on_activation(name)]  # each other set once (an early pose shares its motion's)
                 for other in self.motions:
                     g = self.on_activation(other)
-                    if other != name and not np.array_equal(g, own) and self._same_wearer(name, other):
+                    if not any(np.array_equal(g, h) for h in seen) and self._same_wearer(name, other):
+                        seen.append(g)
                         label = f"{LOCK}{other}"
                         out.append(((name, label), SimState.create(self.motions[name], g, name=f"{name}[{label}]")))
             for label, g in self.solo_activations(name):
