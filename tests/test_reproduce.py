@@ -347,3 +347,12 @@ def test_the_reproduction_keeps_the_papers_clutch_strips():
     assert not paper.clutch_spec().hardware.buckle and problem_to_dict(paper).get("clutches") is None
     assert experiment_problem(exp, res, overrides={"buckle": True}).clutch_spec().hardware.buckle
     assert not experiment_problem(exp, res, overrides={"buckle": None, "preset": None}).clutch_spec().hardware.buckle
+
+
+def test_the_report_names_an_experiments_early_poses():
+    """An experiment designed also for the beginning of a motion says so; one without says nothing."""
+    from kgarment.reproduce.report import early_note
+
+    assert early_note({"early": {}}) == "" and early_note({}) == ""
+    note = early_note({"early": {"arm_flexion.right": 0.33}})
+    assert "`[design] early`" in note and "arm_flexion.right at 0.33" in note

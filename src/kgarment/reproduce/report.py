@@ -180,6 +180,7 @@ def build_markdown(doc: dict, figures: dict) -> str:
                    f"{100 * e['budget']:.0f}%"
                    + (f", clutch balance {e['balance']:g} (`[design] balance`: every clutch's own load path "
                       "rewarded)" if e.get("balance") else "")
+                   + early_note(e)
                    + f"; our run took {e['run']['iterations']} iterations, {e['run']['seconds'] / 60:.1f} min.", ""]
             head = ["design", *[f"{m} ON / OFF" for m in e["motions"]], "parts (clutch-linked / not)", "clutch ends on reinf.", "area"]
             md += md_table(head, design_rows(e))
@@ -296,3 +297,12 @@ def write_report(out: Path, doc: dict | None = None) -> tuple[Path, Path]:
     (out / "report.md").write_text(md)
     (out / "report.html").write_text(markdown_to_html(md, "kgarment: reproduction of the paper", base=out))
     return out / "report.md", out / "report.html"
+
+
+def early_note(e: dict) -> str:
+    """The report's words for an experiment's ``[design] early`` poses ("" without any)."""
+    early = e.get("early") or {}
+    if not early:
+        return ""
+    parts = ", ".join(f"{m} at {t:g} of its movement" for m, t in early.items())
+    return f", also designed for the beginning of a motion (`[design] early`: {parts})"
