@@ -219,7 +219,12 @@ def run_again(name: str, named: bool, old: dict, out: Path) -> bool:
     ``named`` in --experiments, when ``old`` (data.json's entries) lacks it, or when its run
     folder is there; an entry whose run folders are not (a committed report) is kept as it is,
     since running it again would redo its designs."""
-    return named or name not in old or (Path(out) / "runs" / name).is_dir()
+    return named or name not in old or _has_runs(out, name)
+
+
+def _has_runs(out: Path, name: str) -> bool:
+    """Whether experiment ``name``'s run folder is in ``out``."""
+    return (Path(out) / "runs" / name).is_dir()
 
 
 def continued(name: str, old: dict, out: Path) -> dict | None:
@@ -227,7 +232,7 @@ def continued(name: str, old: dict, out: Path) -> dict | None:
     entry when its run folder is there (the rerun reuses those runs, so their time counts),
     None when it is not (a committed report after a fresh clone: the experiment starts afresh
     and replaces the entry, its earlier time is not this run's)."""
-    return old.get(name) if (Path(out) / "runs" / name).is_dir() else None
+    return old.get(name) if _has_runs(out, name) else None
 
 
 def _add_times(entry: dict, before: dict | None) -> dict:
