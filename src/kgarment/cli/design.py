@@ -145,6 +145,8 @@ def cmd_evaluate(args) -> int:
     from kgarment.design.driver import run_inputs
     from kgarment.design.loads import load_chart
     from kgarment.design.run import iteration_of
+    from kgarment.design.store import FOLDER as STORE_FOLDER
+    from kgarment.design.store import EquilibriumStore
     from kgarment.io import atomic_write_text, check_output_file, json_text
     from kgarment.problem import load_problem, override
 
@@ -168,7 +170,8 @@ def cmd_evaluate(args) -> int:
               + ("; the strips buckle (no compression)" if hw.buckle else "; the strips resist compression"))
     k = iteration_of(src)
     p, body, garment, strips = run_inputs(src.run, p)
-    ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device)
+    store = EquilibriumStore(src.run / STORE_FOLDER)  # the run's final evaluation left its equilibria there
+    ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device, store=store)
     design = load_design(src, ev.n_faces)
     print(f"design: {src.run} iteration {k} ({100 * (design > 0.5).mean():.1f}% of faces reinforced)")
     path = None
@@ -187,6 +190,9 @@ def cmd_evaluate(args) -> int:
         print(f"wrote {path_plot(path, stem.with_suffix('.png'), title)}"
               f" and {stem.with_suffix('.json')}")
     res = ev.evaluate(design, loads=not args.no_loads, known=path.ends if path is not None else None)
+    if store.hits:
+        print(f"{store.hits} equilibria taken from {store.folder} (solved before for this design, "
+              f"garment, body and solver), {store.misses} solved now")
     print_evaluation(res)
     if args.plot and res.loads is not None:
         print(f"wrote {load_chart(res.loads, args.plot, f'{src}: clutch loads')}")

@@ -34,7 +34,11 @@ def cmd_plan(args) -> int:
     p, body, garment, strips = run_inputs(src.run, p)
     if not strips:
         raise KgarmentError(f"{src.run} has no clutches: there is nothing to switch")
-    ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device)
+    from kgarment.design.store import FOLDER as STORE_FOLDER
+    from kgarment.design.store import EquilibriumStore
+
+    ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device,
+                                store=EquilibriumStore(src.run / STORE_FOLDER))  # the run's equilibria
     design = load_design(src, ev.n_faces)
     n = len(strips)
     how = f"all {2 ** n - 1} sets" if n <= args.exhaustive else "greedy sets"

@@ -193,21 +193,44 @@ class Evaluator:
     force over the motion and evaluates the same design there next).
     """
 
-    def __init__(self, setup: DesignSetup):
+    def __init__(self, setup: DesignSetup, store=None):
         self.setup = setup
+        self.store = store  # an EquilibriumStore (kgarment.design.store) or None
         self._reference: dict[StateKey, StateResult] = {}
         self._kept: OrderedDict[tuple, Equilibrium] = OrderedDict()
+        self._contexts: dict[int, str] = {}
+
+    def _disk_key(self, kind: str, design_id: str, state: SimState) -> tuple:
+        """The store's key of one state's equilibrium (``kgarment.design.store``): the kind
+        of solve, the solver options and the state's simulation model, the design, the state."""
+        model = self.setup.model_of(state.motion.name)
+        ctx = self._contexts.get(id(model))
+        if ctx is None:
+            from kgarment.design.store import content_digest
+
+            ctx = self._contexts[id(model)] = content_digest(self.setup.solver, model)
+        return (kind, ctx, design_id, state_digest(state))
+
+    def stored(self, kind: str, design_id: str, state: SimState):
+        """The store's entry for this solve, or None (no store, or not there)."""
+        return None if self.store is None else self.store.get(self._disk_key(kind, design_id, state))
+
+    def keep(self, kind: str, design_id: str, state: SimState, value) -> None:
+        """Put a solved equilibrium into the store (if any)."""
+        if self.store is not None:
+            self.store.put(self._disk_key(kind, design_id, state), value)
 
     @classmethod
     def from_problem(cls, problem: Problem, *, body=None, garment=None, strips=None, device: str = "cpu",
-                     objective: str | None = None) -> Evaluator:
+                     objective: str | None = None, store=None) -> Evaluator:
         """An evaluator of ``problem`` (body, garment and clutches built unless given; the
         garment's ``attached`` faces are held); ``objective`` overrides the problem's
-        (``"active"``: every design ON and OFF)."""
+        (``"active"``: every design ON and OFF); ``store``: an EquilibriumStore to keep its
+        equilibria in and take them from (``kgarment.design.store``)."""
         body = build_body(problem) if body is None else body
         garment = build_garment(problem, body) if garment is None else garment
         strips = build_clutches(problem, body, garment) if strips is None else strips
-        return cls(setup_from_problem(problem, body, garment, strips, "evaluate", device, objective))
+        return cls(setup_from_problem(problem, body, garment, strips, "evaluate", device, objective), store)
 
     @property
     def motions(self) -> list[str]:
@@ -256,6 +279,11 @@ class Evaluator:
         39.76 J (29.2 J stored); with the paper's strips the two agree within 0.1%."""
         full = np.ones(self.n_faces)
         todo = [(k, s) for k, s in keyed if k not in self._reference]
+        for k, s in todo:  # solved by an earlier process (a run's store)
+            got = self.stored("full", "", s)
+            if isinstance(got, StateResult):
+                self._reference[k] = got
+        todo = [(k, s) for k, s in todo if k not in self._reference]
         if todo:  # with the OFF states the clutched ones start from (one state at a time: the studio)
             known = set(self._reference) | {k for k, _ in todo}
             offs = {(k[0], "off") for k, s in todo if s.clutched} - known
@@ -268,6 +296,8 @@ class Evaluator:
                 second = self.setup.solve(full, [s for _, s in again], warm_start=[off[k[0]].x for k, _ in again])
                 for (k, _), r in zip(again, second):
                     self._reference[k] = with_known(Equilibrium(self._reference[k]), r).result
+            for k, s in todo:
+                self.keep("full", "", s, self._reference[k])
         return [self._reference[k] for k, _ in keyed]
 
     def solve_design(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]],
@@ -280,12 +310,18 @@ class Evaluator:
         is not solved again."""
         if starts is not None or np.all(design > 0.5):
             return self._solve_design(design, keyed, starts)
-        d = hashlib.blake2b(np.ascontiguousarray(design, dtype=np.float64).tobytes(), digest_size=12).hexdigest()
+        d = design_digest(design)
         ids = [(d, k, state_digest(s)) for k, s in keyed]
         todo = [i for i, key in enumerate(ids) if key not in self._kept]
+        for i in todo:  # solved by an earlier process (a run's store)
+            got = self.stored("design", d, keyed[i][1])
+            if isinstance(got, Equilibrium):
+                self._kept[ids[i]] = got
+        todo = [i for i in todo if ids[i] not in self._kept]
         if todo:
             for i, e in zip(todo, self._solve_design(design, [keyed[i] for i in todo])):
                 self._kept[ids[i]] = e
+                self.keep("design", d, keyed[i][1], e)
         for key in ids:
             self._kept.move_to_end(key)
         out = [dataclasses.replace(self._kept[key], result=dataclasses.replace(self._kept[key].result, name=s.name))
@@ -383,6 +419,11 @@ class Evaluator:
             solid, tuple(rows), float(setup.areas[solid].sum() / setup.areas.sum()), shape["islands"],
             shape["islands_with_clutches"], shape["clutch_ends_supported"], shape["clutch_ends"],
             by_wearer=shape.get("by_wearer"))
+
+
+def design_digest(design: np.ndarray) -> str:
+    """A digest of a design's values (m,), exactly (float64 bytes)."""
+    return hashlib.blake2b(np.ascontiguousarray(design, dtype=np.float64).tobytes(), digest_size=12).hexdigest()
 
 
 def state_digest(state: SimState) -> str:

@@ -170,12 +170,24 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     "off")]``), whichever has the lower energy under the state's activation
     (:func:`nearer_start`), and is solved to :data:`LOAD_TOL`; states that do not converge
     so go through the evaluator's two starts."""
+    from kgarment.design.evaluate import design_digest
+
     setup = evaluator.setup
     opts = dataclasses.replace(setup.solver, tol=max(setup.solver.tol, LOAD_TOL))
+    d = design_digest(design)
+    out = {}
+    for key, st in keyed:  # solved by an earlier process (a run's store)
+        got = evaluator.stored("load", d, st)
+        if isinstance(got, StateResult):
+            out[key] = got
+    todo = [(key, st) for key, st in keyed if key not in out]
     starts = [nearer_start(setup, design, st, [known[(key[0], "on")].x, known[(key[0], "off")].x])
-              for key, st in keyed]
-    solved = setup.solve(design, [st for _, st in keyed], warm_start=starts, options=opts)
-    out = {key: r for (key, _), r in zip(keyed, solved) if r.converged}
+              for key, st in todo]
+    solved = setup.solve(design, [st for _, st in todo], warm_start=starts, options=opts) if todo else []
+    for (key, st), r in zip(todo, solved):
+        if r.converged:
+            out[key] = r
+            evaluator.keep("load", d, st, r)
     retry = [(key, st) for key, st in keyed if key not in out]
     if retry:
         out.update(zip([key for key, _ in retry], evaluator.equilibria(design, retry)))

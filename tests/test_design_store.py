@@ -1,0 +1,115 @@
+"""Equilibria kept on disk (``kgarment.design.store``): a second process's evaluator takes a
+run's equilibria from its store and gives the same numbers without solving; anything that
+changes an equilibrium (the solver options, the design) finds no entry; a damaged entry is
+solved again."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+
+from kgarment.design import Evaluator
+from kgarment.design.setup import DesignSetup
+from kgarment.design.store import EquilibriumStore, content_digest
+from kgarment.problem import BesoParams
+from kgarment.sim import SolverOptions, build_model
+from kgarment.sim.synthetic import Tube
+
+
+def _evaluator(store=None, tol=1e-5) -> tuple[Evaluator, np.ndarray]:
+    """A tube pulled 5% along its axis with two clutches (as in test_design_loads), one
+    linked by reinforcement: a fresh evaluator each call, as a new process would build it."""
+    tube = Tube(0.05, 0.0, 0.3, 40, 25)
+    clutches = [tube.clutch("linked", 0.0, 0.08, 0.22, 0.01, 24), tube.clutch("loose", np.pi, 0.08, 0.22, 0.01, 24)]
+    model = build_model(tube.vertices, tube.faces, clutches, preset="paper")
+    c = tube.vertices[tube.faces].mean(axis=1)
+    band = np.abs(np.arctan2(c[:, 1], c[:, 0])) < 0.26
+    design = np.where(band & ((c[:, 2] < 0.095) | (c[:, 2] > 0.205)), 1.0, 1e-3)
+    setup = DesignSetup.build(model, {"pull": tube.motion("pull", 0.05, 0.0)}, "active", BesoParams(),
+                              SolverOptions(tol=tol, max_iter=300))
+    return Evaluator(setup, store), design
+
+
+def _numbers(ev) -> list:
+    rows = [(s.motion, s.state, s.rho, s.energy, s.energy_full, s.converged) for s in ev.states]
+    loads = [(c.clutch, c.share, c.needed, c.tension_N) for c in ev.loads.clutches]
+    return rows + loads
+
+
+def _count_solves(monkeypatch) -> list:
+    calls = []
+    orig = DesignSetup.solve
+
+    def solve(self, design, states, *args, **kwargs):
+        calls.append(len(states))
+        return orig(self, design, states, *args, **kwargs)
+
+    monkeypatch.setattr(DesignSetup, "solve", solve)
+    return calls
+
+
+@pytest.fixture(scope="module")
+def stored(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("run") / "equilibria"
+    ev, design = _evaluator(EquilibriumStore(folder))
+    return folder, design, ev.evaluate(design, loads=True)
+
+
+def test_a_new_evaluator_takes_the_equilibria_from_the_store_and_solves_nothing(stored, monkeypatch):
+    folder, design, first = stored
+    files = sorted(folder.glob("*.npz"))
+    assert len(files) >= 6  # ON and OFF of the design and of the full garment, the one-clutch states
+    calls = _count_solves(monkeypatch)
+    store = EquilibriumStore(folder)
+    ev, _ = _evaluator(store)
+    again = ev.evaluate(design, loads=True)
+    assert calls == [] and store.misses == 0 and store.hits > 0
+    assert _numbers(again) == _numbers(first)  # the same equilibria: equal to the last digit
+    for a, b in zip(first.states, again.states):
+        np.testing.assert_array_equal(a.result.x, b.result.x)
+        assert a.result.convergence == b.result.convergence and a.result.energy == b.result.energy
+    assert sorted(folder.glob("*.npz")) == files  # nothing new written
+
+
+def test_other_solver_options_or_another_design_find_no_entry(stored, monkeypatch):
+    folder, design, _ = stored
+    calls = _count_solves(monkeypatch)
+    store = EquilibriumStore(folder)
+    ev, _ = _evaluator(store, tol=2e-5)
+    ev.evaluate(design)
+    assert store.hits == 0 and calls
+    store2 = EquilibriumStore(folder)
+    ev2, _ = _evaluator(store2)
+    other = design.copy()
+    other[np.flatnonzero(design < 0.5)[:3]] = 1.0
+    calls.clear()
+    ev2.evaluate(other)
+    assert calls  # the design's states solved; the full garment's taken from the store
+    assert store2.hits == 2
+
+
+def test_a_damaged_entry_is_solved_again_with_a_warning(stored, tmp_path, caplog, monkeypatch):
+    folder, design, first = stored
+    copy = tmp_path / "equilibria"
+    copy.mkdir()
+    files = sorted(folder.glob("*.npz"))
+    for f in files:
+        (copy / f.name).write_bytes(f.read_bytes())
+    (copy / files[0].name).write_bytes(b"not an npz file")
+    calls = _count_solves(monkeypatch)
+    ev, _ = _evaluator(EquilibriumStore(copy))
+    with caplog.at_level(logging.WARNING, logger="kgarment.design.store"):
+        again = ev.evaluate(design, loads=True)
+    assert "unreadable" in caplog.text and calls
+    assert _numbers(again) == _numbers(first)  # solved again: the same equilibrium
+
+
+def test_content_digest_sees_arrays_and_fields():
+    a = np.arange(6.0)
+    b = a.copy()
+    b[3] += 1e-15 * b[3]
+    assert content_digest(a) == content_digest(a.copy()) != content_digest(b)
+    assert content_digest(SolverOptions(tol=1e-4)) != content_digest(SolverOptions(tol=1e-5))
+    assert content_digest(a.astype(np.float32)) != content_digest(a)
