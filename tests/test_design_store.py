@@ -113,3 +113,26 @@ def test_content_digest_sees_arrays_and_fields():
     assert content_digest(a) == content_digest(a.copy()) != content_digest(b)
     assert content_digest(SolverOptions(tol=1e-4)) != content_digest(SolverOptions(tol=1e-5))
     assert content_digest(a.astype(np.float32)) != content_digest(a)
+
+
+def test_a_load_state_from_another_start_is_solved_again(stored, monkeypatch):
+    """Under --path the ON or OFF equilibrium a one-clutch state starts from can be the
+    motion's end instead of the two starts' one: the store keys load states by their start."""
+    from kgarment.design.loads import activation_equilibria
+
+    folder, design, first = stored
+    ev, _ = _evaluator(EquilibriumStore(folder))
+    known = {(s.motion, s.state): s.result for s in first.states}
+    keyed = ev.activation_states([1.0, 0.0], ["pull"], "only linked") + \
+        ev.activation_states([0.0, 1.0], ["pull"], "only loose")
+    calls = _count_solves(monkeypatch)
+    same = activation_equilibria(ev, design, keyed, known)
+    assert calls == []  # the evaluation solved these from the same starts
+    moved = dict(known)
+    for k in (("pull", "on"), ("pull", "off")):
+        r = known[k]
+        moved[k] = type(r)(**{**r.__dict__, "x": r.x + 1e-7})  # another start, a hair away
+    again = activation_equilibria(ev, design, keyed, moved)
+    assert calls == [2]
+    for key in same:
+        assert again[key].total_energy == pytest.approx(same[key].total_energy, rel=1e-4)

@@ -279,8 +279,8 @@ class Evaluator:
         39.76 J (29.2 J stored); with the paper's strips the two agree within 0.1%."""
         full = np.ones(self.n_faces)
         todo = [(k, s) for k, s in keyed if k not in self._reference]
-        for k, s in todo:  # solved by an earlier process (a run's store)
-            got = self.stored("full", "", s)
+        for k, s in todo:  # solved by an earlier process (a run's store; keyed as in memory, by key too)
+            got = self.stored("full", repr(k), s)
             if isinstance(got, StateResult):
                 self._reference[k] = got
         todo = [(k, s) for k, s in todo if k not in self._reference]
@@ -297,7 +297,7 @@ class Evaluator:
                 for (k, _), r in zip(again, second):
                     self._reference[k] = with_known(Equilibrium(self._reference[k]), r).result
             for k, s in todo:
-                self.keep("full", "", s, self._reference[k])
+                self.keep("full", repr(k), s, self._reference[k])
         return [self._reference[k] for k, _ in keyed]
 
     def solve_design(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]],
@@ -314,14 +314,14 @@ class Evaluator:
         ids = [(d, k, state_digest(s)) for k, s in keyed]
         todo = [i for i, key in enumerate(ids) if key not in self._kept]
         for i in todo:  # solved by an earlier process (a run's store)
-            got = self.stored("design", d, keyed[i][1])
+            got = self.stored("design", f"{d}|{ids[i][1]!r}", keyed[i][1])
             if isinstance(got, Equilibrium):
                 self._kept[ids[i]] = got
         todo = [i for i in todo if ids[i] not in self._kept]
         if todo:
             for i, e in zip(todo, self._solve_design(design, [keyed[i] for i in todo])):
                 self._kept[ids[i]] = e
-                self.keep("design", d, keyed[i][1], e)
+                self.keep("design", f"{d}|{ids[i][1]!r}", keyed[i][1], e)
         for key in ids:
             self._kept.move_to_end(key)
         out = [dataclasses.replace(self._kept[key], result=dataclasses.replace(self._kept[key].result, name=s.name))
