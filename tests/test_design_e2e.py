@@ -136,6 +136,12 @@ def test_force_over_the_motion(runs, anny_body, capsys):
     first = near[0][near[1][0][0]].garment_x0
     assert 0 < np.abs(first - rest).max() < 0.1 * np.abs(target.garment_x0 - rest).max()
     assert "force over the motion" in capsys.readouterr().out
+    # again: every solve read back from the run's store (the same states from the same
+    # starts: the run's final evaluation and the path above left them), the same numbers
+    assert main(["-q", "evaluate", str(cli), "--path", "2", "--no-loads", "--json", str(cli / "again.json")]) == 0
+    assert " 0 solved now" in capsys.readouterr().out
+    assert json.loads((cli / "again.json").read_text()) == json.loads((cli / "with-path.json").read_text())
+    assert json.loads(written.read_text()) == doc
 
 
 def test_force_over_the_motion_with_slipping_clutches(runs, capsys):

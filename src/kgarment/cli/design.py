@@ -191,8 +191,8 @@ def cmd_evaluate(args) -> int:
               f" and {stem.with_suffix('.json')}")
     res = ev.evaluate(design, loads=not args.no_loads, known=path.ends if path is not None else None)
     if store.hits:
-        print(f"{store.hits} equilibria taken from {store.folder} (solved before for this design, "
-              f"garment, body and solver), {store.misses} solved now")
+        print(f"{store.hits} solves read back from {store.folder} (the same state from the same start, "
+              f"solved before), {store.misses} solved now")
     print_evaluation(res)
     if args.plot and res.loads is not None:
         print(f"wrote {load_chart(res.loads, args.plot, f'{src}: clutch loads')}")

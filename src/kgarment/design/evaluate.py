@@ -194,31 +194,14 @@ class Evaluator:
     """
 
     def __init__(self, setup: DesignSetup, store=None):
-        self.setup = setup
-        self.store = store  # an EquilibriumStore (kgarment.design.store) or None
+        self.setup = setup if store is None else dataclasses.replace(setup, store=store)
         self._reference: dict[StateKey, StateResult] = {}
         self._kept: OrderedDict[tuple, Equilibrium] = OrderedDict()
-        self._contexts: dict[int, str] = {}
 
-    def _disk_key(self, kind: str, design_id: str, state: SimState) -> tuple:
-        """The store's key of one state's equilibrium (``kgarment.design.store``): the kind
-        of solve, the solver options and the state's simulation model, the design, the state."""
-        model = self.setup.model_of(state.motion.name)
-        ctx = self._contexts.get(id(model))
-        if ctx is None:
-            from kgarment.design.store import content_digest
-
-            ctx = self._contexts[id(model)] = content_digest(self.setup.solver, model)
-        return (kind, ctx, design_id, state_digest(state))
-
-    def stored(self, kind: str, design_id: str, state: SimState):
-        """The store's entry for this solve, or None (no store, or not there)."""
-        return None if self.store is None else self.store.get(self._disk_key(kind, design_id, state))
-
-    def keep(self, kind: str, design_id: str, state: SimState, value) -> None:
-        """Put a solved equilibrium into the store (if any)."""
-        if self.store is not None:
-            self.store.put(self._disk_key(kind, design_id, state), value)
+    @property
+    def store(self):
+        """The EquilibriumStore its solves go through (``kgarment.design.store``), or None."""
+        return self.setup.store
 
     @classmethod
     def from_problem(cls, problem: Problem, *, body=None, garment=None, strips=None, device: str = "cpu",
@@ -279,11 +262,6 @@ class Evaluator:
         39.76 J (29.2 J stored); with the paper's strips the two agree within 0.1%."""
         full = np.ones(self.n_faces)
         todo = [(k, s) for k, s in keyed if k not in self._reference]
-        for k, s in todo:  # solved by an earlier process (a run's store; keyed as in memory, by key too)
-            got = self.stored("full", repr(k), s)
-            if isinstance(got, StateResult):
-                self._reference[k] = got
-        todo = [(k, s) for k, s in todo if k not in self._reference]
         if todo:  # with the OFF states the clutched ones start from (one state at a time: the studio)
             known = set(self._reference) | {k for k, _ in todo}
             offs = {(k[0], "off") for k, s in todo if s.clutched} - known
@@ -296,8 +274,6 @@ class Evaluator:
                 second = self.setup.solve(full, [s for _, s in again], warm_start=[off[k[0]].x for k, _ in again])
                 for (k, _), r in zip(again, second):
                     self._reference[k] = with_known(Equilibrium(self._reference[k]), r).result
-            for k, s in todo:
-                self.keep("full", repr(k), s, self._reference[k])
         return [self._reference[k] for k, _ in keyed]
 
     def solve_design(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]],
@@ -313,15 +289,9 @@ class Evaluator:
         d = design_digest(design)
         ids = [(d, k, state_digest(s)) for k, s in keyed]
         todo = [i for i, key in enumerate(ids) if key not in self._kept]
-        for i in todo:  # solved by an earlier process (a run's store)
-            got = self.stored("design", f"{d}|{ids[i][1]!r}", keyed[i][1])
-            if isinstance(got, Equilibrium):
-                self._kept[ids[i]] = got
-        todo = [i for i in todo if ids[i] not in self._kept]
         if todo:
             for i, e in zip(todo, self._solve_design(design, [keyed[i] for i in todo])):
                 self._kept[ids[i]] = e
-                self.keep("design", f"{d}|{ids[i][1]!r}", keyed[i][1], e)
         for key in ids:
             self._kept.move_to_end(key)
         out = [dataclasses.replace(self._kept[key], result=dataclasses.replace(self._kept[key].result, name=s.name))

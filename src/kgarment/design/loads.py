@@ -170,27 +170,12 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     "off")]``), whichever has the lower energy under the state's activation
     (:func:`nearer_start`), and is solved to :data:`LOAD_TOL`; states that do not converge
     so go through the evaluator's two starts."""
-    from kgarment.design.evaluate import design_digest
-
     setup = evaluator.setup
     opts = dataclasses.replace(setup.solver, tol=max(setup.solver.tol, LOAD_TOL))
-    starts = {key: nearer_start(setup, design, st, [known[(key[0], "on")].x, known[(key[0], "off")].x])
-              for key, st in keyed}
-    # the store's key: the design and the start (the ON and OFF equilibria it came from can
-    # differ: the motion from rest's end replaces a two-start one under --path)
-    ids = {key: design_digest(design) + design_digest(starts[key]) for key, _ in keyed}
-    out = {}
-    for key, st in keyed:  # solved by an earlier process (a run's store)
-        got = evaluator.stored("load", ids[key], st)
-        if isinstance(got, StateResult):
-            out[key] = got
-    todo = [(key, st) for key, st in keyed if key not in out]
-    solved = setup.solve(design, [st for _, st in todo], warm_start=[starts[key] for key, _ in todo],
-                         options=opts) if todo else []
-    for (key, st), r in zip(todo, solved):
-        if r.converged:
-            out[key] = r
-            evaluator.keep("load", ids[key], st, r)
+    starts = [nearer_start(setup, design, st, [known[(key[0], "on")].x, known[(key[0], "off")].x])
+              for key, st in keyed]
+    solved = setup.solve(design, [st for _, st in keyed], warm_start=starts, options=opts)
+    out = {key: r for (key, _), r in zip(keyed, solved) if r.converged}
     retry = [(key, st) for key, st in keyed if key not in out]
     if retry:
         out.update(zip([key for key, _ in retry], evaluator.equilibria(design, retry)))

@@ -46,7 +46,7 @@ import numpy as np
 from kgarment.design.evaluate import MULTISTABLE
 from kgarment.design.frames import REST, frame_motions
 from kgarment.errors import KgarmentError
-from kgarment.sim import SimState, clutch_tensions, solve_states
+from kgarment.sim import SimState, clutch_tensions
 from kgarment.sim.slip import slides
 
 log = logging.getLogger(__name__)
@@ -221,7 +221,7 @@ def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: in
             for m in motions for s in STATES}
     if first is None:
         keys = list(acts)
-        got = solve_states(model, design, [SimState.create(sim_motions[labels[m]], acts[(m, s)], name=f"{m}@1[{s}]")
+        got = setup.solve(design, [SimState.create(sim_motions[labels[m]], acts[(m, s)], name=f"{m}@1[{s}]")
                                            for m, s in keys], options=setup.solver)
         first = {k: r.x for k, r in zip(keys, got)}
     bytes_of = {k: np.asarray(a, dtype=np.float64).tobytes() for k, a in acts.items()}
@@ -232,7 +232,7 @@ def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: in
             unique[bytes_of[(m, s)]] = (("@rest", label), SimState.create(sim_motions[REST], a, name=f"rest[{label}]"))
     best = dict(zip(unique, evaluator.equilibria(design, list(unique.values()))))
     keys = [k for k in acts if k in first]
-    back = solve_states(model, design, [dataclasses.replace(unique[bytes_of[k]][1], name=f"rest<-{k[0]}[{k[1]}]")
+    back = setup.solve(design, [dataclasses.replace(unique[bytes_of[k]][1], name=f"rest<-{k[0]}[{k[1]}]")
                                         for k in keys], warm_start=[first[k] for k in keys], options=setup.solver)
     for k, r in zip(keys, back):
         b = best[bytes_of[k]]
@@ -282,7 +282,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         states = [state(by_motion[m][i][0], m, s) for m, s, _ in keys]
         warm = [carried(model, results[(m, s, i - 1)].x, sim_motions[by_motion[m][i - 1][0]], st.motion)
                 if i > 0 else None for (m, s, _), st in zip(keys, states)]
-        solved = solve_states(model, design, states, warm_start=warm, options=setup.solver)
+        solved = setup.solve(design, states, warm_start=warm, options=setup.solver)
         retry = [j for j, r in enumerate(solved) if not r.converged]
         if retry:  # the evaluator's two starts (skin-tight, fully reinforced garment)
             # keyed by frame: the evaluator keeps equilibria per key, and a frame is not the target
@@ -355,7 +355,7 @@ def _anchor_target(evaluator, design, motions, frames, by_motion, state, results
     (motion, state) paths go step by step together, one batch of solves per step (the
     workers share them; each path's sweep is what it would be alone).  Returns the keys
     replaced."""
-    setup, model = evaluator.setup, evaluator.setup.model
+    setup = evaluator.setup
     keys = [(m, s) for m in motions for s in STATES]
     # keyed like the evaluator's own target states: the same pose, so its equilibria there
     # (and its fully reinforced references) are reused and its numbers are the path's end
@@ -373,7 +373,7 @@ def _anchor_target(evaluator, design, motions, frames, by_motion, state, results
                  r.total_energy)
     while sweep:
         items = list(sweep.items())
-        again = solve_states(model, design, [state(by_motion[m][i][0], m, s) for (m, s), i in items],
+        again = setup.solve(design, [state(by_motion[m][i][0], m, s) for (m, s), i in items],
                              warm_start=[results[(m, s, i + 1)].x for (m, s), i in items], options=setup.solver)
         sweep = {}
         for ((m, s), i), a in zip(items, again):
@@ -391,7 +391,7 @@ def _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results
     lowest-energy converged equilibrium.  Every (motion, state) path is repaired on its own
     (:func:`_jump_repairs`); their solves go in one batch per step.  Returns the (motion,
     state, frame) keys replaced."""
-    model, options = evaluator.setup.model, evaluator.setup.solver
+    options = evaluator.setup.solver
     replaced: set = set()
     pending = {}
     for m in motions:
@@ -403,7 +403,7 @@ def _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results
     while pending:
         keys = list(pending)
         asks = [pending[k][1] for k in keys]  # (state, warm start, evaluator key)
-        warm = solve_states(model, design, [a[0] for a in asks], warm_start=[a[1] for a in asks], options=options)
+        warm = evaluator.setup.solve(design, [a[0] for a in asks], warm_start=[a[1] for a in asks], options=options)
         starts = evaluator.equilibria(design, [(a[2], a[0]) for a in asks])
         for k, w, e in zip(keys, warm, starts):
             gen = pending.pop(k)[0]

@@ -79,6 +79,7 @@ class DesignSetup:
     wearers: dict[str, Wearer] = field(default_factory=dict, repr=False)
     path_start: int = 0
     path_frames: dict[str, tuple[Motion, ...]] = field(default_factory=dict, repr=False)
+    store: object = field(default=None, repr=False, compare=False)  # EquilibriumStore (design.store) or None
 
     @classmethod
     def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
@@ -126,10 +127,18 @@ class DesignSetup:
 
     def solve(self, design: np.ndarray, states, warm_start=None, options: SolverOptions | None = None) -> list:
         """:func:`kgarment.sim.solve_states` of ``states`` (SimState list; warm_start and
-        options as there, options default ``self.solver``), each on its motion's wearer's model."""
+        options as there, options default ``self.solver``), each on its motion's wearer's model;
+        through ``store`` where there is one (a solve done before is read back, not repeated)."""
+        options = self.solver if options is None else options
+        if self.store is not None:
+            return self.store.solve(self, design, list(states), warm_start, options)
+        return self.solve_now(design, states, warm_start, options)
+
+    def solve_now(self, design: np.ndarray, states, warm_start, options: SolverOptions) -> list:
+        """:meth:`solve` without the store."""
         models = [self.model_of(s.motion.name) for s in states]
         return solve_states(models if self.wearers else self.model, design, states, warm_start=warm_start,
-                            options=self.solver if options is None else options)
+                            options=options)
 
     @property
     def n_clutches(self) -> int:

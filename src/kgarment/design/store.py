@@ -4,23 +4,26 @@ A design run ends with the evaluation of its final design (the one design evalua
 :mod:`kgarment.design.evaluate`): every state from two starts, the fully reinforced
 garment's states, one state per clutch and motion for the loads.  ``kgarment evaluate RUN``
 (with or without ``--path``) and ``kgarment plan RUN`` then need the same equilibria again,
-in another process.  The evaluator keeps each equilibrium it solves in the run's
-``equilibria/`` folder and takes it from there the next time instead of solving it again,
-so a later command gives the same numbers to the last digit (the same equilibria) without
-the solves.
+in another process.  The evaluator's solves go through the run's store
+(:meth:`kgarment.design.setup.DesignSetup.solve`): a solve done before -- the same state
+from the same start -- is read back instead of solved again, so a later command gives
+the same numbers to the last digit without the work, whatever it builds from them (the
+two starts, the fully reinforced references, the load states, the frames of the force over
+the motion and their repairs).
 
-An entry is keyed by content, never by name: the simulation model's version
-(``SIM_MODEL``), a digest of the simulator's and the evaluator's source files (an entry
-written by other code is not used), the solver options, the device, the simulation model
-(garment, clutches, materials, clutch model; every array of it), the design's values (for
-the design's equilibria), the posed body, the skin-tight garment, its attachments and the
-clutch activation (:func:`kgarment.design.evaluate.state_digest`) and what kind of solve
-it is (the fully reinforced garment, the design from the two starts, a load state).  A
-different clutch model or friction given on the command line, another body or design,
-simply finds no entry.  One ``.npz`` file per entry (no pickle: nothing in a run folder is
-executed on reading), written to a temporary name and renamed, so a reader never sees half
-a file; an unreadable entry is reported and solved again.  Size: about 0.1 MB per state at
-subdivision 0 (the main job's run: ~40 states, 4 MB), ~1.3 MB at subdivision 2.
+An entry is one solve, keyed by everything its result depends on: the simulation model's
+version (``SIM_MODEL``), a digest of the simulator's and the evaluator's source files (an
+entry written by other code is not used), the solver options (not the number of worker
+processes: solves repeat bit for bit in any process), the state's simulation model
+(garment, clutches, materials, clutch model: every array of it), the design's values, the
+posed body, the skin-tight garment, its attachments and the clutch activation
+(:func:`kgarment.design.evaluate.state_digest`) and the start (the skin-tight garment, or
+the start's positions).  A different clutch model or friction given on the command line,
+another body, design or start simply finds no entry.  One ``.npz`` file per entry (no
+pickle: nothing in a run folder is executed on reading), written to a temporary name and
+renamed, so a reader never sees half a file; an unreadable entry is reported and solved
+again.  Size: about 0.1 MB per solve at subdivision 0 (the main job's final evaluation:
+~40 solves, 3 MB), ~1.3 MB at subdivision 2.
 """
 
 from __future__ import annotations
@@ -103,12 +106,44 @@ def _feed(h, obj, depth: int = 0) -> None:
 
 
 class EquilibriumStore:
-    """Equilibria (:class:`~kgarment.sim.StateResult`, or the evaluator's ``Equilibrium``)
-    in ``folder``, one ``.npz`` per key (a tuple of strings; see the module docstring)."""
+    """Solved states (:class:`~kgarment.sim.StateResult`) in ``folder``, one ``.npz`` per
+    key (see the module docstring).  ``hits`` / ``misses`` count the solves read back /
+    not found."""
 
     def __init__(self, folder):
         self.folder = Path(folder)
         self.hits = self.misses = 0
+        self._models: dict[int, tuple[object, str]] = {}  # id -> (the model, kept alive; its digest)
+
+    def solve(self, setup, design: np.ndarray, states: list, warm_start, options) -> list[StateResult]:
+        """``setup.solve_now`` of the states not in the store, the others read back (under
+        the states' own names); the new ones are kept."""
+        from kgarment.design.evaluate import design_digest, state_digest
+
+        warm = list(warm_start) if warm_start is not None else [None] * len(states)
+        opts = content_digest(dataclasses.replace(options, workers=0, on_fail="warn"))
+        d = design_digest(design)
+        keys = [(opts, self._model_digest(setup.model_of(s.motion.name)), d, state_digest(s),
+                 "skin-tight" if w is None else content_digest(np.asarray(w, dtype=np.float64)))
+                for s, w in zip(states, warm)]
+        out: list = [None] * len(states)
+        for i, key in enumerate(keys):
+            got = self.get(key)
+            if got is not None:
+                out[i] = dataclasses.replace(got, name=states[i].name)
+        todo = [i for i, r in enumerate(out) if r is None]
+        if todo:
+            solved = setup.solve_now(design, [states[i] for i in todo], [warm[i] for i in todo], options)
+            for i, r in zip(todo, solved):
+                out[i] = r
+                self.put(keys[i], r)
+        return out
+
+    def _model_digest(self, model) -> str:
+        hit = self._models.get(id(model))
+        if hit is None or hit[0] is not model:
+            hit = self._models[id(model)] = (model, content_digest(model))
+        return hit[1]
 
     def _file(self, key: tuple) -> Path:
         return self.folder / f"{content_digest(SIM_MODEL, code_digest(), *key)}.npz"
@@ -157,14 +192,8 @@ def _result_fields(r: StateResult, prefix: str) -> dict:
                                                   "friction": r.friction}))}
 
 
-def _fields(value) -> dict:
-    if isinstance(value, StateResult):
-        return {"kind": np.array("result"), **_result_fields(value, "")}
-    out = {"kind": np.array("equilibrium"), "from_path": np.array(bool(value.from_path)),
-           **_result_fields(value.result, "")}
-    if value.other is not None:
-        out.update(_result_fields(value.other, "other_"))
-    return out
+def _fields(value: StateResult) -> dict:
+    return _result_fields(value, "")
 
 
 def _result(z, prefix: str) -> StateResult:
@@ -183,10 +212,5 @@ def _result(z, prefix: str) -> StateResult:
                        garment_x=None if n < 0 else x[:n], friction=float(meta["friction"]))
 
 
-def _read(z):
-    if str(z["kind"]) == "result":
-        return _result(z, "")
-    from kgarment.design.evaluate import Equilibrium
-
-    other = _result(z, "other_") if "other_x" in z.files else None
-    return Equilibrium(_result(z, ""), other, bool(z["from_path"]))
+def _read(z) -> StateResult:
+    return _result(z, "")
