@@ -222,7 +222,7 @@ def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: in
     if first is None:
         keys = list(acts)
         got = setup.solve(design, [SimState.create(sim_motions[labels[m]], acts[(m, s)], name=f"{m}@1[{s}]")
-                                           for m, s in keys], options=setup.solver)
+                                   for m, s in keys], options=setup.solver)
         first = {k: r.x for k, r in zip(keys, got)}
     bytes_of = {k: np.asarray(a, dtype=np.float64).tobytes() for k, a in acts.items()}
     unique: dict[bytes, tuple] = {}
@@ -233,7 +233,7 @@ def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: in
     best = dict(zip(unique, evaluator.equilibria(design, list(unique.values()))))
     keys = [k for k in acts if k in first]
     back = setup.solve(design, [dataclasses.replace(unique[bytes_of[k]][1], name=f"rest<-{k[0]}[{k[1]}]")
-                                        for k in keys], warm_start=[first[k] for k in keys], options=setup.solver)
+                                for k in keys], warm_start=[first[k] for k in keys], options=setup.solver)
     for k, r in zip(keys, back):
         b = best[bytes_of[k]]
         if r.converged and (not b.converged or r.total_energy < b.total_energy * (1 - 1e-9)):
@@ -374,7 +374,7 @@ def _anchor_target(evaluator, design, motions, frames, by_motion, state, results
     while sweep:
         items = list(sweep.items())
         again = setup.solve(design, [state(by_motion[m][i][0], m, s) for (m, s), i in items],
-                             warm_start=[results[(m, s, i + 1)].x for (m, s), i in items], options=setup.solver)
+                            warm_start=[results[(m, s, i + 1)].x for (m, s), i in items], options=setup.solver)
         sweep = {}
         for ((m, s), i), a in zip(items, again):
             if a.converged and a.total_energy < results[(m, s, i)].total_energy * (1 - 1e-9):

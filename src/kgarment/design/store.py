@@ -12,12 +12,12 @@ two starts, the fully reinforced references, the load states, the frames of the 
 the motion and their repairs).
 
 An entry is one solve, keyed by everything its result depends on: the simulation model's
-version (``SIM_MODEL``), a digest of the simulator's and the evaluator's source files (an
-entry written by other code is not used), the solver options (not the number of worker
+version (``SIM_MODEL``), a digest of the simulator's source files (:data:`CODE`: an entry
+written by code that solves differently is not used), the solver options (not the number of worker
 processes: solves repeat bit for bit in any process), the state's simulation model
 (garment, clutches, materials, clutch model: every array of it), the design's values, the
-posed body, the skin-tight garment, its attachments and the clutch activation
-(:func:`kgarment.design.evaluate.state_digest`) and the start (the skin-tight garment, or
+posed body (vertices and normals), the skin-tight garment, its attachments and the clutch
+activation (:func:`kgarment.design.evaluate.state_digest`) and the start (the skin-tight garment, or
 the start's positions).  A different clutch model or friction given on the command line,
 another body, design or start simply finds no entry.  One ``.npz`` file per entry (no
 pickle: nothing in a run folder is executed on reading), written to a temporary name and
@@ -45,8 +45,9 @@ from kgarment.sim.options import Convergence
 
 log = logging.getLogger(__name__)
 FOLDER = "equilibria"  # the store's folder in a run folder
-# the sources whose change can change an equilibrium or what an evaluation keeps of it
-CODE = ("sim", "design/evaluate.py", "design/loads.py", "design/setup.py", "constants.py")
+# the sources whose change can change what a solve returns (a key names all its inputs, so
+# the evaluation's own logic -- which solves it asks for -- is not among them)
+CODE = ("sim", "design/setup.py", "design/store.py", "constants.py")
 
 
 @functools.cache
@@ -113,7 +114,7 @@ class EquilibriumStore:
     def __init__(self, folder):
         self.folder = Path(folder)
         self.hits = self.misses = 0
-        self._models: dict[int, tuple[object, str]] = {}  # id -> (the model, kept alive; its digest)
+        self._models: dict[int, tuple[object, str]] = {}  # id -> (the object, kept alive; its digest)
 
     def solve(self, setup, design: np.ndarray, states: list, warm_start, options) -> list[StateResult]:
         """``setup.solve_now`` of the states not in the store, the others read back (under
@@ -124,6 +125,7 @@ class EquilibriumStore:
         opts = content_digest(dataclasses.replace(options, workers=0, on_fail="warn"))
         d = design_digest(design)
         keys = [(opts, self._model_digest(setup.model_of(s.motion.name)), d, state_digest(s),
+                 self._normals_digest(s.motion.body),
                  "skin-tight" if w is None else content_digest(np.asarray(w, dtype=np.float64)))
                 for s, w in zip(states, warm)]
         out: list = [None] * len(states)
@@ -138,6 +140,10 @@ class EquilibriumStore:
                 out[i] = r
                 self.put(keys[i], r)
         return out
+
+    def _normals_digest(self, body) -> str:
+        """The posed body's normals (its key covers the vertices only)."""
+        return self._model_digest(body.normals)
 
     def _model_digest(self, model) -> str:
         hit = self._models.get(id(model))
