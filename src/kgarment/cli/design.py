@@ -258,7 +258,10 @@ def add_parsers(sub) -> None:
     sp.set_defaults(func=cmd_sizes)
 
     sp = sub.add_parser("evaluate", help="evaluate a design (any iteration of a run) on any motions: rho ON/OFF, "
-                        "islands, clutch ends, and the load each clutch carries")
+                        "islands, clutch ends, and the load each clutch carries",
+                        description="Evaluate a design of a run with the one design evaluator. Solves done "
+                        "before on the run (its final evaluation, an earlier evaluate or plan) are read back "
+                        "from RUN/equilibria/ instead of solved again: the same numbers, without the work.")
     sp.add_argument("design", help="run folder (its final design) or RUN@ITERATION")
     sp.add_argument("--motion", action="append", help="motion to evaluate on (repeatable); default: the run's")
     sp.add_argument("--json", help="also write the results as JSON to this file")
