@@ -52,7 +52,7 @@ CODE = ("sim", "design/setup.py", "design/store.py", "constants.py")
 
 @functools.cache
 def code_digest() -> str:
-    """A digest of the simulator's and the evaluator's source files (:data:`CODE`)."""
+    """A digest of the source files that make a solve (:data:`CODE`)."""
     root = Path(__file__).resolve().parent.parent
     h = hashlib.blake2b(digest_size=12)
     for part in CODE:
@@ -122,7 +122,7 @@ class EquilibriumStore:
         from kgarment.design.evaluate import design_digest, state_digest
 
         warm = list(warm_start) if warm_start is not None else [None] * len(states)
-        opts = content_digest(dataclasses.replace(options, workers=0, on_fail="warn"))
+        opts = content_digest(dataclasses.replace(options, workers=0))
         d = design_digest(design)
         keys = [(opts, self._model_digest(setup.model_of(s.motion.name)), d, state_digest(s),
                  self._normals_digest(s.motion.body),
