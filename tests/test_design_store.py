@@ -136,3 +136,19 @@ def test_a_load_state_from_another_start_is_solved_again(stored, monkeypatch):
     assert calls == [2]
     for key in same:
         assert again[key].total_energy == pytest.approx(same[key].total_energy, rel=1e-4)
+
+
+def test_numpy_scalars_in_a_record_round_trip(tmp_path, stored):
+    """A StateResult whose record holds numpy scalars (np.bool_, np.int64) is kept and read
+    back as the same values."""
+    import dataclasses
+
+    _, _, first = stored
+    r = first.states[0].result
+    odd = dataclasses.replace(r, convergence=dataclasses.replace(
+        r.convergence, converged=np.bool_(r.converged), iterations=np.int64(r.convergence.iterations)))
+    store = EquilibriumStore(tmp_path / "eq")
+    store.put(("k",), odd)
+    back = store.get(("k",))
+    assert back.convergence == r.convergence and back.total_energy == r.total_energy
+    np.testing.assert_array_equal(back.x, r.x)

@@ -195,7 +195,14 @@ def _result_fields(r: StateResult, prefix: str) -> dict:
             f"{prefix}clutch_energy": cat(list(r.clutch_energy)), f"{prefix}clutch_density": cat(list(r.clutch_density)),
             f"{prefix}n_garment": np.array(len(r.garment_x) if r.garment_x is not None else -1),
             f"{prefix}meta": np.array(json.dumps({"name": r.name, "energy": r.energy, "convergence": conv,
-                                                  "friction": r.friction}))}
+                                                  "friction": r.friction}, default=_plain))}
+
+
+def _plain(obj):
+    """numpy scalars (a bool_ or an integer in a record) as Python ones for JSON."""
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
 
 
 def _fields(value: StateResult) -> dict:
