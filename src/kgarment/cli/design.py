@@ -145,8 +145,7 @@ def cmd_evaluate(args) -> int:
     from kgarment.design.driver import run_inputs
     from kgarment.design.loads import load_chart
     from kgarment.design.run import iteration_of
-    from kgarment.design.store import FOLDER as STORE_FOLDER
-    from kgarment.design.store import EquilibriumStore
+    from kgarment.design.store import run_store
     from kgarment.io import atomic_write_text, check_output_file, json_text
     from kgarment.problem import load_problem, override
 
@@ -170,7 +169,7 @@ def cmd_evaluate(args) -> int:
               + ("; the strips buckle (no compression)" if hw.buckle else "; the strips resist compression"))
     k = iteration_of(src)
     p, body, garment, strips = run_inputs(src.run, p)
-    store = EquilibriumStore(src.run / STORE_FOLDER)  # the run's final evaluation left its equilibria there
+    store = run_store(src.run)  # the run's final evaluation left its equilibria there
     ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device, store=store)
     design = load_design(src, ev.n_faces)
     print(f"design: {src.run} iteration {k} ({100 * (design > 0.5).mean():.1f}% of faces reinforced)")

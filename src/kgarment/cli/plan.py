@@ -34,11 +34,10 @@ def cmd_plan(args) -> int:
     p, body, garment, strips = run_inputs(src.run, p)
     if not strips:
         raise KgarmentError(f"{src.run} has no clutches: there is nothing to switch")
-    from kgarment.design.store import FOLDER as STORE_FOLDER
-    from kgarment.design.store import EquilibriumStore
+    from kgarment.design.store import run_store
 
     ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device,
-                                store=EquilibriumStore(src.run / STORE_FOLDER))  # the run's equilibria
+                                store=run_store(src.run))  # the run's equilibria
     design = load_design(src, ev.n_faces)
     n = len(strips)
     how = f"all {2 ** n - 1} sets" if n <= args.exhaustive else "greedy sets"

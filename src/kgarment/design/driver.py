@@ -39,8 +39,7 @@ from kgarment.design.run import (
     save_checkpoint,
 )
 from kgarment.design.setup import DesignSetup, setup_from_problem
-from kgarment.design.store import FOLDER as STORE_FOLDER
-from kgarment.design.store import EquilibriumStore
+from kgarment.design.store import run_store
 from kgarment.errors import Cancelled, KgarmentError
 from kgarment.garment import Garment
 from kgarment.io import atomic_save_npz, atomic_write_text, json_text, replace_folder
@@ -226,7 +225,7 @@ def evaluate_final(dr: DesignRun, iteration: int) -> tuple[DesignEvaluation, lis
     path_start`` is evaluated like ``kgarment evaluate RUN --path 10`` (the motion's end a
     start; its force over the motion under ``path`` in the JSON)."""
     ev = Evaluator(setup_from_problem(dr.problem, dr.body, dr.garment, dr.strips, "evaluate", dr.setup.solver.device),
-                   EquilibriumStore(dr.run / STORE_FOLDER))  # kgarment evaluate / plan RUN take them from there
+                   run_store(dr.run))  # kgarment evaluate / plan RUN take them from there
     design = design_values(dr.state.designs[iteration])
     path = None
     if dr.setup.path_start:  # a run that designs against the motion is judged by it: --path's numbers

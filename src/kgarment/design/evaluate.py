@@ -198,11 +198,6 @@ class Evaluator:
         self._reference: dict[StateKey, StateResult] = {}
         self._kept: OrderedDict[tuple, Equilibrium] = OrderedDict()
 
-    @property
-    def store(self):
-        """The EquilibriumStore its solves go through (``kgarment.design.store``), or None."""
-        return self.setup.store
-
     @classmethod
     def from_problem(cls, problem: Problem, *, body=None, garment=None, strips=None, device: str = "cpu",
                      objective: str | None = None, store=None) -> Evaluator:

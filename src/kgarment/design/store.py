@@ -31,15 +31,14 @@ from __future__ import annotations
 import dataclasses
 import functools
 import hashlib
-import io
 import json
 import logging
-import os
 from pathlib import Path
 
 import numpy as np
 
 from kgarment.constants import SIM_MODEL
+from kgarment.io import atomic_save_npz
 from kgarment.sim import StateResult
 from kgarment.sim.options import Convergence
 
@@ -106,6 +105,11 @@ def _feed(h, obj, depth: int = 0) -> None:
         h.update(f"{type(obj).__qualname__}:{obj!r}".encode())
 
 
+def run_store(run) -> EquilibriumStore:
+    """The store of run folder ``run`` (its :data:`FOLDER`)."""
+    return EquilibriumStore(Path(run) / FOLDER)
+
+
 class EquilibriumStore:
     """Solved states (:class:`~kgarment.sim.StateResult`) in ``folder``, one ``.npz`` per
     key (see the module docstring).  ``hits`` / ``misses`` count the solves read back /
@@ -114,7 +118,7 @@ class EquilibriumStore:
     def __init__(self, folder):
         self.folder = Path(folder)
         self.hits = self.misses = 0
-        self._models: dict[int, tuple[object, str]] = {}  # id -> (the object, kept alive; its digest)
+        self._digests: dict[int, tuple[object, str]] = {}  # id -> (the object, kept alive; its digest)
 
     def solve(self, setup, design: np.ndarray, states: list, warm_start, options) -> list[StateResult]:
         """``setup.solve_now`` of the states not in the store, the others read back (under
@@ -124,8 +128,8 @@ class EquilibriumStore:
         warm = list(warm_start) if warm_start is not None else [None] * len(states)
         opts = content_digest(dataclasses.replace(options, workers=0))
         d = design_digest(design)
-        keys = [(opts, self._model_digest(setup.model_of(s.motion.name)), d, state_digest(s),
-                 self._normals_digest(s.motion.body),
+        keys = [(opts, self._digest(setup.model_of(s.motion.name)), d, state_digest(s),
+                 self._digest(s.motion.body.normals),  # the body's key covers its vertices only
                  "skin-tight" if w is None else content_digest(np.asarray(w, dtype=np.float64)))
                 for s, w in zip(states, warm)]
         out: list = [None] * len(states)
@@ -141,14 +145,12 @@ class EquilibriumStore:
                 self.put(keys[i], r)
         return out
 
-    def _normals_digest(self, body) -> str:
-        """The posed body's normals (its key covers the vertices only)."""
-        return self._model_digest(body.normals)
-
-    def _model_digest(self, model) -> str:
-        hit = self._models.get(id(model))
-        if hit is None or hit[0] is not model:
-            hit = self._models[id(model)] = (model, content_digest(model))
+    def _digest(self, obj) -> str:
+        """content_digest of a large object that stays the same (a model, a body's normals),
+        computed once per object."""
+        hit = self._digests.get(id(obj))
+        if hit is None or hit[0] is not obj:
+            hit = self._digests[id(obj)] = (obj, content_digest(obj))
         return hit[1]
 
     def _file(self, key: tuple) -> Path:
@@ -170,32 +172,27 @@ class EquilibriumStore:
         self.hits += 1
         return value
 
-    def put(self, key: tuple, value) -> None:
+    def put(self, key: tuple, value: StateResult) -> None:
         """Keep ``value`` under ``key`` (a failure to write is reported, not raised: the
         store only saves time)."""
         path = self._file(key)
         try:
-            self.folder.mkdir(parents=True, exist_ok=True)
-            buf = io.BytesIO()
-            np.savez_compressed(buf, **_fields(value))
-            tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-            tmp.write_bytes(buf.getvalue())
-            os.replace(tmp, path)
+            atomic_save_npz(path, **_fields(value))
         except OSError as exc:
             log.warning("equilibrium store: could not write %s (%s)", path, exc)
 
-
-def _result_fields(r: StateResult, prefix: str) -> dict:
+def _fields(r: StateResult) -> dict:
+    """A solve's result as the arrays of its ``.npz`` (the record and the energies as JSON)."""
     conv = dataclasses.asdict(r.convergence)
     conv["history"] = list(conv["history"])
     sizes = np.array([len(c) for c in r.clutch_energy], dtype=np.int64)
     cat = (lambda parts: np.concatenate(parts) if parts else np.zeros(0))
-    return {f"{prefix}x": r.x, f"{prefix}garment_energy": r.garment_energy,
-            f"{prefix}garment_density": r.garment_density, f"{prefix}clutch_sizes": sizes,
-            f"{prefix}clutch_energy": cat(list(r.clutch_energy)), f"{prefix}clutch_density": cat(list(r.clutch_density)),
-            f"{prefix}n_garment": np.array(len(r.garment_x) if r.garment_x is not None else -1),
-            f"{prefix}meta": np.array(json.dumps({"name": r.name, "energy": r.energy, "convergence": conv,
-                                                  "friction": r.friction}, default=_plain))}
+    return {"x": r.x, "garment_energy": r.garment_energy, "garment_density": r.garment_density,
+            "clutch_sizes": sizes, "clutch_energy": cat(list(r.clutch_energy)),
+            "clutch_density": cat(list(r.clutch_density)),
+            "n_garment": np.array(len(r.garment_x) if r.garment_x is not None else -1),
+            "meta": np.array(json.dumps({"name": r.name, "energy": r.energy, "convergence": conv,
+                                         "friction": r.friction}, default=_plain))}
 
 
 def _plain(obj):
@@ -205,25 +202,18 @@ def _plain(obj):
     raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
 
 
-def _fields(value: StateResult) -> dict:
-    return _result_fields(value, "")
-
-
-def _result(z, prefix: str) -> StateResult:
-    meta = json.loads(str(z[f"{prefix}meta"]))
+def _read(z) -> StateResult:
+    """The StateResult of an entry's arrays (:func:`_fields`)."""
+    meta = json.loads(str(z["meta"]))
     conv = meta["convergence"]
     conv["history"] = tuple(conv["history"])
-    sizes = z[f"{prefix}clutch_sizes"]
+    sizes = z["clutch_sizes"]
     cuts = np.cumsum(sizes)[:-1]
-    x = z[f"{prefix}x"]
-    n = int(z[f"{prefix}n_garment"])
-    return StateResult(name=meta["name"], x=x, garment_energy=z[f"{prefix}garment_energy"],
-                       garment_density=z[f"{prefix}garment_density"],
-                       clutch_energy=list(np.split(z[f"{prefix}clutch_energy"], cuts)) if len(sizes) else [],
-                       clutch_density=list(np.split(z[f"{prefix}clutch_density"], cuts)) if len(sizes) else [],
+    x = z["x"]
+    n = int(z["n_garment"])
+    return StateResult(name=meta["name"], x=x, garment_energy=z["garment_energy"],
+                       garment_density=z["garment_density"],
+                       clutch_energy=list(np.split(z["clutch_energy"], cuts)) if len(sizes) else [],
+                       clutch_density=list(np.split(z["clutch_density"], cuts)) if len(sizes) else [],
                        energy={k: float(v) for k, v in meta["energy"].items()}, convergence=Convergence(**conv),
                        garment_x=None if n < 0 else x[:n], friction=float(meta["friction"]))
-
-
-def _read(z) -> StateResult:
-    return _result(z, "")
