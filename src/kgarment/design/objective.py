@@ -16,7 +16,7 @@
                it, one above it is left alone (the strongest clutch is not counted twice).
                Each G_c's sensitivity is scaled to the size of G's (divided by its largest
                absolute value, times the ON state's largest), so a clutch carrying nothing
-               yet still counts.  Measured in the README.
+               yet still counts.  Measured in docs/notes/design.md, "Balance".
 
 How the motions combine (``[design] combine``, the active objective):
 
@@ -28,9 +28,10 @@ How the motions combine (``[design] combine``, the active objective):
                load path is failing weighs more the more it fails, so the design does not
                give one motion up for the others: on the two-motion sleeve the sum lets
                flexion fall from rho ON 1.1 to 0.2-0.5 while the budget shrinks from 30% to
-               20% (the sleeve turns about the arm), the product holds both (README).  The
-               scalar objective is then ``n`` times the geometric mean of the floored terms
-               (equal to the sum where the terms are equal).
+               20% (the sleeve turns about the arm), the product holds both
+               (docs/notes/design.md, "Combine").  The scalar objective is then ``n`` times
+               the geometric mean of the floored terms (equal to the sum where the terms are
+               equal).
 """
 
 from __future__ import annotations

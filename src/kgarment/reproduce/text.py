@@ -33,7 +33,7 @@ def targets(doc: dict) -> list[str]:
     """Bullets: the issue's targets for our designs, each met or missed, with the numbers;
     then what limits the missed ones."""
     out = [f"- `{t.name}`: {_ok(t.ok)}: {t.detail}" for t in evaluate_targets(doc)]
-    out += ["", "What limits them (measured, see `README.md`, \"Design runs\"):",
+    out += ["", "What limits them (measured, see `docs/notes/design.md`):",
             "- On this frictionless body only the attachment rings and bands that close around an arm or the "
             "torso hold load: an open strip of reinforcement slides. A clutch carries load only in series between "
             "such anchors, and the objective routes each motion through its strongest clutch; `[design] balance` "
@@ -200,8 +200,8 @@ def preset_note(doc: dict) -> str:
     """The report's words on its material preset: what it is, how strongly switching the
     clutches changes what the wearer works against in this report's designs (garment
     energy ON over OFF, the range over every motion of *ours*), and where the choice of
-    the examples' default is argued (README.md, "Which material preset reproduces the
-    paper?", both presets reproduced)."""
+    the examples' default is argued (docs/notes/reproduction.md, "Which material preset
+    reproduces the paper?", both presets reproduced)."""
     preset = doc.get("preset", "paper")
     words = PRESET_WORDS.get(preset, "")
     ratios = [g["energy_on_J"] / g["energy_off_J"] for e in doc["experiments"].values()
@@ -212,7 +212,8 @@ def preset_note(doc: dict) -> str:
         switch = ("switching the clutches on multiplies what the wearer works against (the garment's energy) by "
                   f"{lo if lo == hi else f'{lo}-{hi}'} in our designs")
     default = "the examples' default" if preset == "paper" else "not the examples' default (`paper`)"
-    parts = [words, switch, f"{default}, why: README.md, \"Which material preset reproduces the paper?\""]
+    parts = [words, switch, f"{default}, why: docs/notes/reproduction.md, "
+                            "\"Which material preset reproduces the paper?\""]
     return " (" + "; ".join(p for p in parts if p) + ")"
 
 
