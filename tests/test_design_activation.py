@@ -50,6 +50,17 @@ def test_sets_and_lock_states():
                                                                                           ("twist", "on")]
 
 
+def test_the_connected_update_passes_only_clutches_switched_on_together():
+    """An OFF clutch is compliant cloth: the connected update may hold a clutch's end
+    through another clutch only where some motion switches both on."""
+    assert tube_setup().end_partners() is None  # every clutch ON in every motion
+    s = tube_setup({"pull": np.array([1.0, 0.0]), "twist": np.array([0.0, 0.5])})
+    assert len(s.all_end_faces) == 2
+    assert [list(p) for p in s.end_partners()] == [[], []]
+    s = tube_setup({"pull": np.array([1.0, 1.0]), "twist": np.array([0.0, 1.0])})
+    assert [list(p) for p in s.end_partners()] == [[1], [0]]
+
+
 def test_a_set_two_motions_share_is_one_lock_state():
     """A motion pays once for each other set, however many motions switch it (an early
     pose of a motion shares the motion's set): the same switch state is not counted twice."""

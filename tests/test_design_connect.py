@@ -90,6 +90,49 @@ def test_two_clutches_in_a_v_are_joined_at_their_meeting_ends():
     assert not (out & (np.abs(c[:, 0]) > 0.04) & (np.abs(c[:, 0]) < 0.08)).any()  # no bypass
 
 
+def test_clutches_never_on_together_are_each_held_without_the_other():
+    """The V of the test above, but the two clutches are never switched on together
+    (selective activation): the pad joining their inner ends is held only through the other
+    clutch, which is OFF whenever this one is ON, so each inner end gets its own reinforced
+    path to a held edge that does not pass the other clutch."""
+    v, f, c, areas, held = strip()
+    ends = [ends_at(c, -0.10, -0.015), ends_at(c, 0.10, 0.015)]
+    band = np.abs(c[:, 1]) < 0.015
+    outer = band & (np.abs(c[:, 0]) > 0.09)
+    pad = band & (np.abs(c[:, 0]) < 0.03)
+    alpha = np.where(outer | pad, 1.0, 0.02) - 0.01 * np.abs(c[:, 1])
+    target = 1.5 * areas[outer | pad].sum() / areas.sum()
+    adj = face_adjacency(f)
+    together = connect_design(outer | pad, alpha, areas, target, adj, ends, held)
+    apart = connect_design(outer | pad, alpha, areas, target, adj, ends, held, partners=[[], []])
+    for out in (together, apart):
+        assert all(a and b for a, b in clutch_end_support(out, ends))
+    # all ON together: the chain through both clutches holds, nothing else is needed
+    assert islands(f, together) == 3 and islands(f, together, links=ends) == 1
+    # never together: each clutch's inner end reaches a held edge over reinforcement
+    # without the other clutch, i.e. the pad is joined to an outer part
+    assert islands(f, apart) < 3
+    for a, b in ends:
+        for end in (a, b):
+            assert reached(f, apart, end, [])[held].any()
+    assert not all(reached(f, together, b, [])[held].any() for _, b in ends)  # the pad alone is not held
+
+
+def reached(f, solid, start, links):
+    """(m,) bool faces of ``solid`` joined to ``start`` through solid faces and ``links``."""
+    from scipy.sparse.csgraph import breadth_first_order
+
+    from kgarment.design.connect import link_graph
+    g = link_graph(face_adjacency(f), links)
+    idx = np.flatnonzero(solid)
+    pos = np.full(len(solid), -1)
+    pos[idx] = np.arange(len(idx))
+    order = breadth_first_order(g[idx][:, idx], pos[int(start[0])], directed=False, return_predecessors=False)
+    out = np.zeros(len(solid), bool)
+    out[idx[order]] = True
+    return out
+
+
 def test_a_band_around_a_tube_is_held_an_open_patch_is_not():
     """On a tube (two boundary rings, nothing attached) a band around it separates the two
     openings (the body cannot slip out of it); a patch on one side does not."""
@@ -109,6 +152,39 @@ def test_a_band_around_a_tube_is_held_an_open_patch_is_not():
     assert not anchored(patch, adj, np.zeros(0, int), loops).any()
     ring = np.flatnonzero(c[:, 2] < 0.02)
     assert anchored(patch | np.isin(np.arange(len(f)), ring), adj, ring, loops)[ring].all()
+
+
+def test_the_trim_keeps_the_band_a_clutch_end_is_held_by():
+    """On a tube (nothing attached) a clutch along it with each end on a band around it;
+    the band of end A ranks lowest and the area must shrink.  The trim removes the ranked
+    tail beyond the upper band and leaves the lower band closed: opening it would leave end A
+    joined to the rest only through its own clutch, holding nothing (the trim that checked
+    only the root's part kept 4 of the band's 48 faces and end A was held by nothing)."""
+    from kgarment.garment.topology import boundary_loops
+    from kgarment.sim.synthetic import Tube
+
+    tube = Tube(0.05, 0.0, 0.3, 24, 31)
+    f = tube.faces
+    c = tube.vertices[f].mean(axis=1)
+    areas = triangle_areas(tube.vertices, f)
+    loops = [np.flatnonzero(np.isin(f, loop).any(axis=1)) for loop in boundary_loops(f)]
+    theta = np.arctan2(c[:, 1], c[:, 0])
+    near = lambda z: np.argsort(np.hypot(c[:, 2] - z, 0.05 * np.abs(theta)))[:3]
+    ends = [(near(0.105), near(0.2))]
+    band_a = np.abs(c[:, 2] - 0.105) < 0.004  # one row of triangles: removing a few opens it
+    band_b = np.abs(c[:, 2] - 0.2) < 0.012
+    tail = (c[:, 2] > 0.2) & (c[:, 2] < 0.27) & (np.abs(theta) < 0.6)
+    proposal = band_a | band_b | tail
+    alpha = np.where(band_b, 1.0, np.where(tail, 0.5, 0.1)) + 1e-3 * c[:, 2]
+    adj = face_adjacency(f)
+    assert anchored(proposal, adj, np.zeros(0, int), loops)[band_a].all()
+    target = 0.8 * areas[proposal].sum() / areas.sum()
+    out = connect_design(proposal, alpha, areas, target, adj, ends, np.zeros(0, int), loops)
+    held = anchored(out, adj, np.zeros(0, int), loops)
+    assert held[ends[0][0][out[ends[0][0]]]].any() and held[ends[0][1][out[ends[0][1]]]].any()
+    assert (out & band_a).sum() >= band_a.sum() - 2 and held[band_a & out].all()  # still around the tube
+    assert (tail & ~out).sum() > tail.sum() / 2  # the area came from the tail
+    assert abs(areas[out].sum() / areas.sum() - target) < 3 * areas.max() / areas.sum()
 
 
 def test_no_clutches_no_change():

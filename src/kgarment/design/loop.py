@@ -272,7 +272,8 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
         design = update_design(base, rank, setup.areas, target, p, settled_ar(p, at_target))
         if p.connected and setup.ends:
             design = design_values(connect_design(design > 0.5, alpha, setup.areas, target, setup.adjacency,
-                                                  setup.all_end_faces, setup.attached, setup.loop_faces, guarded))
+                                                  setup.all_end_faces, setup.attached, setup.loop_faces, guarded,
+                                                  setup.end_partners()))
         if setup.protected is not None:
             design[setup.protected] = 1.0
     warm = st.warm if rejected else {

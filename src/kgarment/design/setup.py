@@ -163,6 +163,20 @@ class DesignSetup:
         """Every wearer's clutch ends (the connected update keeps each on reinforcement)."""
         return [e for ends in self.wearer_end_faces().values() for e in ends]
 
+    def end_partners(self) -> list[np.ndarray] | None:
+        """Per entry of :attr:`all_end_faces`, the entries whose clutches are switched on
+        together with it in some motion's ON set, on the same wearer (the only clutches the
+        connected update may pass between its ends and an anchor: an OFF clutch is
+        compliant); None when every motion switches every clutch on (all of them)."""
+        if not self.selective():
+            return None
+        on = np.array([self.on_activation(m) > 0 for m in self.motions])  # (motions, K)
+        together = (on[:, :, None] & on[:, None, :]).any(axis=0)
+        np.fill_diagonal(together, False)
+        k = self.n_clutches
+        return [w * k + np.flatnonzero(together[j]) for w in range(len(self.all_end_faces) // max(k, 1))
+                for j in range(k)]
+
     def structure(self, design: np.ndarray) -> dict:
         """The paper's structural properties of ``design`` (m,): ``islands`` (parts of the
         reinforcement), ``islands_with_clutches`` (parts when each clutch joins the parts its
