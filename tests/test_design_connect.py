@@ -120,17 +120,9 @@ def test_clutches_never_on_together_are_each_held_without_the_other():
 
 def reached(f, solid, start, links):
     """(m,) bool faces of ``solid`` joined to ``start`` through solid faces and ``links``."""
-    from scipy.sparse.csgraph import breadth_first_order
+    from kgarment.design.connect import _reachable, link_graph
 
-    from kgarment.design.connect import link_graph
-    g = link_graph(face_adjacency(f), links)
-    idx = np.flatnonzero(solid)
-    pos = np.full(len(solid), -1)
-    pos[idx] = np.arange(len(idx))
-    order = breadth_first_order(g[idx][:, idx], pos[int(start[0])], directed=False, return_predecessors=False)
-    out = np.zeros(len(solid), bool)
-    out[idx[order]] = True
-    return out
+    return _reachable(link_graph(face_adjacency(f), links), solid, int(start[0]))
 
 
 def test_a_band_around_a_tube_is_held_an_open_patch_is_not():

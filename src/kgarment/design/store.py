@@ -181,6 +181,7 @@ class EquilibriumStore:
         except OSError as exc:
             log.warning("equilibrium store: could not write %s (%s)", path, exc)
 
+
 def _fields(r: StateResult) -> dict:
     """A solve's result as the arrays of its ``.npz`` (the record and the energies as JSON)."""
     conv = dataclasses.asdict(r.convergence)
