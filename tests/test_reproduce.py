@@ -356,3 +356,20 @@ def test_the_report_names_an_experiments_early_poses():
     assert early_note({"early": {}}) == "" and early_note({}) == ""
     note = early_note({"early": {"arm_flexion.right": 0.33}})
     assert "`[design] early`" in note and "arm_flexion.right at 0.33" in note
+
+
+def test_the_comparison_names_what_carries_a_motion_that_falls_short():
+    """The sentence on motions more than 2x below the paper is read from the design's clutch
+    loads: the clutch that carries the motion where one does, "no clutch" where none does."""
+    from kgarment.reproduce.text import short_words
+
+    def exp(loads):
+        return {"evaluations": {"ours": {"clutches": [
+            {"motion": "flex", "clutch": c, "share": s, "tension_N": t, "loaded": s >= 0.1} for c, s, t in loads]}}}
+
+    doc = {"experiments": {"a": exp([("outer", 1.0, 217.0), ("inner", 0.02, 0.1)]),
+                           "b": exp([("outer", 0.03, 2.0), ("inner", 0.05, 1.0)])}}
+    text = short_words(doc, [(0.43, "a", "flex"), (0.2, "b", "flex")])
+    assert "a/flex (0.43x): outer carries it (share 1.00, 217 N at the target)" in text
+    assert "b/flex (0.20x): no clutch carries it" in text
+    assert short_words(doc, []) == ""
