@@ -363,13 +363,17 @@ def test_the_comparison_names_what_carries_a_motion_that_falls_short():
     loads: the clutch that carries the motion where one does, "no clutch" where none does."""
     from kgarment.reproduce.text import short_words
 
-    def exp(loads):
+    def exp(loads, loaded=None):  # loaded: the clutches loaded (default: share >= 0.1)
         return {"evaluations": {"ours": {"clutches": [
-            {"motion": "flex", "clutch": c, "share": s, "tension_N": t, "loaded": s >= 0.1} for c, s, t in loads]}}}
+            {"motion": "flex", "clutch": c, "share": s, "tension_N": t,
+             "loaded": s >= 0.1 if loaded is None else c in loaded} for c, s, t in loads]}}}
 
     doc = {"experiments": {"a": exp([("outer", 1.0, 217.0), ("inner", 0.02, 0.1)]),
-                           "b": exp([("outer", 0.03, 2.0), ("inner", 0.05, 1.0)])}}
-    text = short_words(doc, [(0.43, "a", "flex"), (0.2, "b", "flex")])
+                           "b": exp([("outer", 0.03, 2.0), ("inner", 0.05, 1.0)]),
+                           # in series: outer loaded by its needed share alone, inner by neither
+                           "c": exp([("outer", 0.04, 90.0), ("inner", 0.08, 3.0)], loaded={"outer"})}}
+    text = short_words(doc, [(0.43, "a", "flex"), (0.2, "b", "flex"), (0.3, "c", "flex")])
     assert "a/flex (0.43x): outer carries it (share 1.00, 217 N at the target)" in text
     assert "b/flex (0.20x): no clutch carries it" in text
+    assert "c/flex (0.30x): outer carries it (share 0.04, 90 N at the target)" in text
     assert short_words(doc, []) == ""

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.constants import LOADED_SHARE
 from kgarment.reproduce.targets import evaluate_targets, ratio_text
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -162,18 +163,20 @@ def comparison_paragraph(doc: dict) -> str:
 def short_words(doc: dict, short: list[tuple[float, str, str]]) -> str:
     """The comparison's sentence on the motions where ours is more than 2x below the paper
     (``short``: (ratio, experiment, motion)), with what our design's clutch loads say there:
-    the clutch that carries the motion (share, tension at the target) or that none does."""
+    the loaded clutch of largest share (its share, tension at the target) or that none is
+    loaded (the loads' own ``loaded`` flag)."""
     if not short:
         return ""
     parts = []
     for r, name, m in short:
         loads = [c for c in doc["experiments"][name]["evaluations"]["ours"].get("clutches", []) if c["motion"] == m]
-        top = max(loads, key=lambda c: c["share"] if math.isfinite(c["share"]) else -1.0, default=None)
-        if top is None:
+        carried = [c for c in loads if c["loaded"]]
+        if not loads:
             what = "no clutch loads measured"
-        elif not any(c["loaded"] for c in loads):
-            what = "no clutch carries it (every share below 0.1)"
+        elif not carried:
+            what = f"no clutch carries it (share and needed below {LOADED_SHARE:g})"
         else:
+            top = max(carried, key=lambda c: c["share"] if math.isfinite(c["share"]) else -1.0)
             what = f"{top['clutch']} carries it (share {top['share']:.2f}, {top['tension_N']:.0f} N at the target)"
         parts.append(f"{name}/{m} ({r:.2f}x): {what}")
     return " Where we fall more than 2x short, see the experiment below; " + "; ".join(parts) + "."
