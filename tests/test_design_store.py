@@ -94,8 +94,7 @@ def test_a_damaged_entry_is_solved_again_with_a_warning(stored, tmp_path, caplog
     folder, design, first = stored
     copy = tmp_path / "equilibria"
     copy.mkdir()
-    files = sorted(folder.glob("*.npz"))
-    for f in files:  # every entry damaged: the folder also holds other tests' entries, which
+    for f in folder.glob("*.npz"):  # every entry damaged: the folder also holds other tests' entries, which
         (copy / f.name).write_bytes(b"not an npz file")  # this evaluation would not read
     calls = _count_solves(monkeypatch)
     ev, _ = _evaluator(EquilibriumStore(copy))
