@@ -78,7 +78,9 @@ def target_reached(area: float, target: float, er: float) -> bool:
     return abs(area - target) <= TARGET_MARGIN + er * target
 
 # ----- clutch hardware: how much an ON clutch holds (method.md section 9; kgarment.sim.slip) -----
-CLUTCH_MODELS = ("locked", "slip")  # locked: an ON clutch never slips (the paper's model)
+CLUTCH_MODELS = ("locked", "slip", "cable")  # locked: an ON clutch never slips (the paper's model);
+                           # slip: its elements hold up to the holding force (kgarment.sim.slip);
+                           # cable: one pull-only force along it, up to the holding force (kgarment.sim.cable)
 HOLDING_STRESS = 2.1e5     # Pa of overlap (width x length): 21 N/cm^2, measured for the textile
                            # electrostatic clutches the paper used (Hinchet & Shea 2020)
 DIELECTRIC_THICKNESS = 25e-6  # m: the paper's P(VDF-TrFE-CTFE) layer on the insulating strip

@@ -97,10 +97,11 @@ def add_clutch_model(sp, buckle_default: str = "the problem's [clutches] buckle"
     """--clutch-model, --holding-force and --buckle (the [clutches] hardware, kgarment.sim.slip;
     ``buckle_default``: what --help says happens without --buckle / --no-buckle)."""
     sp.add_argument("--clutch-model", choices=C.CLUTCH_MODELS, help="locked: an ON clutch never slips (the "
-                    "paper's model); slip: it holds up to its holding force and slides at it beyond "
-                    "(default: the problem's [clutches] model)")
+                    "paper's model); slip: it holds up to its holding force and slides at it beyond; cable: like slip, "
+                    "but the strip carries one pull-only force between its ends (its parts may stretch while it is "
+                    "shortened on the whole) (default: the problem's [clutches] model)")
     sp.add_argument("--holding-force", type=number(*C.CLUTCH_RANGES["holding_force"]), metavar="N",
-                    help="newtons every clutch holds before it slides (implies --clutch-model slip; default: "
+                    help="newtons every clutch holds before it slides (implies --clutch-model slip unless cable; default: "
                     f"the problem's, else {C.HOLDING_STRESS / 1e4:g} N/cm^2 of strip)")
     sp.add_argument("--buckle", action=argparse.BooleanOptionalAction, default=None,
                     help="ON clutch strips buckle: they take no compression (--no-buckle: they resist it as stiffly "

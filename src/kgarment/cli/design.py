@@ -165,7 +165,8 @@ def cmd_evaluate(args) -> int:
     hw = p.clutch_spec().hardware
     other_hw = args.clutch_model or args.holding_force or args.buckle is not None
     if other_hw:
-        print("clutches: " + ("locked (never slip)" if hw.model == "locked" else "slip at their holding force")
+        print("clutches: " + {"locked": "locked (never slip)", "slip": "slip at their holding force",
+                              "cable": "pull-only cables between their ends, slipping at their holding force"}[hw.model]
               + ("; the strips buckle (no compression)" if hw.buckle else "; the strips resist compression"))
     k = iteration_of(src)
     p, body, garment, strips = run_inputs(src.run, p)
@@ -185,7 +186,7 @@ def cmd_evaluate(args) -> int:
                           + (f"-mu{args.skin_friction:g}" if args.skin_friction is not None else ""))
         atomic_write_text(stem.with_suffix(".json"), json_text({"run": str(src.run), "iteration": k,
                                                                  **path.to_json()}))
-        title = f"{src.run.name} iteration {k}: force over the motion" + (" (clutches slip)" if hw.model == "slip" else "")
+        title = f"{src.run.name} iteration {k}: force over the motion" + {"slip": " (clutches slip)", "cable": " (cable clutches)"}.get(hw.model, "")
         print(f"wrote {path_plot(path, stem.with_suffix('.png'), title)}"
               f" and {stem.with_suffix('.json')}")
     res = ev.evaluate(design, loads=not args.no_loads, known=path.ends if path is not None else None)

@@ -72,11 +72,12 @@ def build_model(problem: Problem, garment: Garment, strips) -> SimModel:
     hw = problem.clutch_spec().hardware
     return build_sim_model(garment.rest_vertices, garment.faces, strips, preset=problem.materials.preset,
                            holding_force=holding_forces(hw, strips), clutch_buckle=hw.buckle,
-                           friction=problem.materials.skin_friction)
+                           friction=problem.materials.skin_friction, clutch_cable=hw.model == "cable")
 
 
 def holding_forces(hw: ClutchHardware, strips) -> np.ndarray | None:
-    """(K,) newtons each clutch holds (``kgarment.sim.slip``), or None for locked clutches:
+    """(K,) newtons each clutch holds (``kgarment.sim.slip``, ``kgarment.sim.cable``), or None
+    for locked clutches:
     ``holding_force`` by name (or ``"*"``), else the holding stress (``holding_stress``, or the
     electrostatic formula where ``voltage`` is set) times the strip's width x length."""
     if hw.model == "locked":

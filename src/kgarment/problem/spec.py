@@ -57,8 +57,10 @@ class GarmentSpec:
 class ClutchHardware:
     """[clutches] hardware: how an ON clutch holds (``kgarment.sim.slip``).
 
-    model : "locked" (the paper's: an ON clutch never slips) or "slip" (it holds up to its
-        holding force and slides at it beyond).
+    model : "locked" (the paper's: an ON clutch never slips), "slip" (it holds up to its
+        holding force and slides at it beyond) or "cable" (as slip, but the strip carries one
+        pull-only force between its ends, ``kgarment.sim.cable``: slack when shortened on the
+        whole however its parts are stretched).
     holding_stress : Pa of overlap (width x length) a clutch holds (21 N/cm^2 measured).
     voltage : V; > 0: the holding stress from the parallel-plate formula with
         ``dielectric_thickness`` (m), ``permittivity`` (relative) and ``friction``.

@@ -153,6 +153,8 @@ def comparison_paragraph(doc: dict) -> str:
             + PRESET_WORDS.get(doc.get("preset", "paper"), "") + ")"
             + (", the clutches slip at their holding force (the paper's never do)" if "slip" in doc.get("clutch_model", "")
                else "")
+            + (", the clutches are pull-only cables between their ends that slip at their holding force (the "
+               "paper's are stiff bands that never slip)" if "cable" in doc.get("clutch_model", "") else "")
             + (", the ON clutch strips buckle instead of resisting compression (the paper's resist it as stiffly as "
                "tension)" if buckling(doc) else "")
             + ", and our Newton solver finds tighter equilibria than the paper's L-BFGS. rho is a ratio to "

@@ -68,7 +68,10 @@ class HessianPattern:
     elem_select : (q,) flat indices into the (m, 9, 9) element Hessians that are on or
     below the diagonal; elem_pos : (q,) their CSC positions;
     vert_select : (6,) flat indices into a 3x3 block (lower part); vert_pos : (N, 6);
-    diag_pos : (3N,) positions of the diagonal.
+    diag_pos : (3N,) positions of the diagonal;
+    dense_select, dense_pos : per dense vertex group (a cable clutch's strip,
+    ``kgarment.sim.cable``), the flat indices into its (3v, 3v) block that are on or below
+    the diagonal and their CSC positions.
     """
 
     n_dof: int
@@ -79,6 +82,8 @@ class HessianPattern:
     vert_select: np.ndarray
     vert_pos: np.ndarray
     diag_pos: np.ndarray
+    dense_select: tuple = ()
+    dense_pos: tuple = ()
 
     @property
     def nnz(self) -> int:
@@ -122,9 +127,10 @@ class HessianPattern:
         return sel, self.positions(rows[sel], cols[sel])
 
 
-def build_pattern(n_vertices: int, tri: np.ndarray, spring_index: np.ndarray) -> HessianPattern:
+def build_pattern(n_vertices: int, tri: np.ndarray, spring_index: np.ndarray, dense=()) -> HessianPattern:
     """tri : (m, 3) global vertex ids of all membrane elements;
-    spring_index : (S, 4) vertex ids of the motion-independent springs."""
+    spring_index : (S, 4) vertex ids of the motion-independent springs;  dense : vertex id
+    arrays (v,) whose vertices are all coupled with one another (a cable clutch's strip)."""
     n_dof = 3 * n_vertices
     m = len(tri)
     dof = (3 * tri[:, :, None] + np.arange(3)).reshape(m, 9)  # (m, 9)
@@ -143,8 +149,14 @@ def build_pattern(n_vertices: int, tri: np.ndarray, spring_index: np.ndarray) ->
         for c in range(3):
             srows.append(3 * s_ + c)
             scols.append(3 * t_ + c)
-    all_r = np.concatenate([rows[esel], vr[:, vsel].ravel(), *srows])
-    all_c = np.concatenate([cols[esel], vc[:, vsel].ravel(), *scols])
+    blocks = []  # (select, rows, cols) of each dense group's lower entries
+    for verts in dense:
+        d = (3 * np.asarray(verts, dtype=np.int64)[:, None] + np.arange(3)).ravel()  # (3v,)
+        br, bc = np.broadcast_to(d[:, None], (len(d),) * 2).ravel(), np.broadcast_to(d[None, :], (len(d),) * 2).ravel()
+        sel = np.nonzero(br >= bc)[0]
+        blocks.append((sel, br[sel], bc[sel]))
+    all_r = np.concatenate([rows[esel], vr[:, vsel].ravel(), *srows, *(b[1] for b in blocks)])
+    all_c = np.concatenate([cols[esel], vc[:, vsel].ravel(), *scols, *(b[2] for b in blocks)])
     low = all_r >= all_c
     keys = np.unique(all_c[low].astype(np.int64) * n_dof + all_r[low])
     kc = keys // n_dof
@@ -158,7 +170,9 @@ def build_pattern(n_vertices: int, tri: np.ndarray, spring_index: np.ndarray) ->
     vpos = lookup(vr[:, vsel].ravel(), vc[:, vsel].ravel()).reshape(n_vertices, len(vsel))
     dpos = lookup(np.arange(n_dof), np.arange(n_dof))
     return HessianPattern(n_dof=n_dof, indptr=indptr, indices=indices, elem_select=esel,
-                          elem_pos=epos, vert_select=vsel, vert_pos=vpos, diag_pos=dpos)
+                          elem_pos=epos, vert_select=vsel, vert_pos=vpos, diag_pos=dpos,
+                          dense_select=tuple(b[0] for b in blocks),
+                          dense_pos=tuple(lookup(b[1], b[2]) for b in blocks))
 
 
 class SparseCholesky:

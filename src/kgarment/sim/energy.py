@@ -2,7 +2,9 @@
 
 ``E(x) = E_membrane(garment) + E_membrane(clutches) + E_contact + E_attach + E_anchor
 + E_tie`` on x (N, 3); with slipping clutches (:mod:`kgarment.sim.slip`) an ON clutch's
-membrane is its OFF one plus an axial slider, counted in its elements' membrane energy.
+membrane is its OFF one plus an axial slider, counted in its elements' membrane energy;
+with cable clutches (:mod:`kgarment.sim.cable`) its OFF one plus one pull-only force along
+the strip, its energy shared among the strip's elements by area.
 :class:`StateProblem` holds the per-state tensors (materials, penalty weights, body,
 springs, sliders) and the contact neighbour cache; it is the object the solvers minimise.
 """
@@ -14,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from kgarment.sim.cable import LOCKED_CAP, SPACING, Cable, cable_energy
 from kgarment.sim.contact import NEIGHBORS, contact, gather, imls_fast, update_neighbors
 from kgarment.sim.friction import friction, normal_forces
 from kgarment.sim.materials import (
@@ -67,11 +70,13 @@ def slider_arrays(model: SimModel, mats: StateMaterials, activation) -> tuple[np
     """The slipping clutch elements of a state (``sim.slip``): element ids (q,), slider
     stiffness ``k`` (q,) N/m -- what the activation adds to the OFF membrane, from the
     state's materials ``mats`` -- and holding force per unit width ``cap`` (q,) N/m; the
-    elements of every clutch with a finite holding force and activation g > 0."""
+    elements of every clutch with a finite holding force and activation g > 0 (every clutch
+    with g > 0 for cable clutches, ``sim.cable``; a locked one's cap is ``LOCKED_CAP``)."""
     g = np.asarray(activation, dtype=np.float64).reshape(-1)
     hold = model.holding(g)
     fo = model.face_offsets
-    on = [k for k in range(model.n_clutches) if g[k] > 0.0 and np.isfinite(hold[k])]
+    on = [k for k in range(model.n_clutches) if g[k] > 0.0 and (model.clutch_cable or np.isfinite(hold[k]))]
+    hold = np.minimum(hold, LOCKED_CAP * model.strip_width)
     if not on:
         return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
     ids = np.concatenate([np.arange(fo[k + 1], fo[k + 2]) for k in on])
@@ -138,10 +143,15 @@ class StateProblem:
         young, thick = self.mats.young.copy(), self.mats.thick.copy()
         sid, sk, scap = slider_arrays(model, self.mats, state.activation)
         young[sid], thick[sid] = model.preset.young_clutch_off, model.preset.thick_clutch_off
-        self.sliders = None if len(sid) == 0 else SliderSet(
-            element=T(sid, torch.long), tri=T(el.tri[sid], torch.long),
-            coef=T(model.slip_coef[sid - model.n_faces]), area=T(el.area[sid]), k=T(sk), cap=T(scap),
-            pull_only=model.clutch_buckle)
+        self.sliders, self.cables = None, []
+        self.cable_pos, self.cable_sel = [], []  # the cables' dense Hessian blocks in the pattern
+        if len(sid) and model.clutch_cable:
+            self.cables = self._cables(sid, sk, scap)
+        elif len(sid):
+            self.sliders = SliderSet(
+                element=T(sid, torch.long), tri=T(el.tri[sid], torch.long),
+                coef=T(model.slip_coef[sid - model.n_faces]), area=T(el.area[sid]), k=T(sk), cap=T(scap),
+                pull_only=model.clutch_buckle)
         mu, lam = lame_plane_stress(young, model.preset.poisson)
         self.tri = T(el.tri, torch.long)
         self.G = T(el.shape_grad)
@@ -176,6 +186,27 @@ class StateProblem:
             self.fr_anchor = T(self.initial_positions()[:n])
             self.fr_normal, self.fr_bound = T(np.zeros((n, 3))), T(np.zeros(n))
 
+    def _cables(self, sid: np.ndarray, sk: np.ndarray, scap: np.ndarray) -> list[Cable]:
+        """The cables (``sim.cable``) of the ON clutches whose elements are ``sid`` (q,), with
+        the slider stiffness ``sk`` (q,) N/m and cap ``scap`` (q,) N/m of each element."""
+        model, T = self.model, self._t
+        fo, el = model.face_offsets, model.elements
+        clutch = np.searchsorted(fo, sid, side="right") - 2  # (q,) clutch of each element
+        out = []
+        for k in np.unique(clutch):
+            mine = sid[clutch == k]
+            ids, W, rest = model.cable_paths[k]
+            first = np.searchsorted(sid, mine[0])
+            area = el.area[mine]
+            width = float(model.strip_width[k])
+            spacing = SPACING * width * min(scap[first], sk[first]) / (rest / (len(W) - 1))
+            out.append(Cable(clutch=int(k), vertices=T(ids, torch.long), W=T(W), rest=rest, width=width,
+                             k=T(sk[first]), cap=T(scap[first]), elements=T(mine, torch.long),
+                             share=T(area / area.sum()), spacing=float(spacing)))
+            self.cable_pos.append(T(model.pattern.dense_pos[k], torch.long))
+            self.cable_sel.append(T(model.pattern.dense_select[k], torch.long))
+        return out
+
     def _t(self, a, dtype=torch.float64):
         return torch.as_tensor(np.ascontiguousarray(a), dtype=dtype, device=self.device)
 
@@ -208,14 +239,15 @@ class StateProblem:
         self.n_evals += 1
         proj = "none" if exact else self.projection
         e_m, g_m, h_m = self._membrane(x, order, proj)
+        e_k, g_k, h_k = self._cable_terms(x, order, proj == "none")
         e_c, g_c, h_c = contact(x, self.k_contact, *self._contact_args(x), order=order,
                                 exact_hessian=exact or self.exact_contact_hessian, pre=self._pre)
         e_s, g_s = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=min(order, 1))
         e_f, g_f, h_f = self._friction(x, order)
-        total = e_m.sum() + e_c.sum() + e_s.sum() + e_f.sum()
+        total = e_m.sum() + e_c.sum() + e_s.sum() + e_f.sum() + sum(e_k)
         if check:
             if not bool(torch.isfinite(total)):
-                for term, val in self._split_terms(e_m, e_c, e_s, e_f).items():
+                for term, val in self._split_terms(self._with_cables(e_m, e_k), e_c, e_s, e_f).items():
                     self._check(val, term)
         elif not bool(torch.isfinite(total)):
             total = torch.tensor(float("inf"))
@@ -223,6 +255,8 @@ class StateProblem:
             return float(total), None, None
         grad = g_c + g_s
         grad.index_add_(0, self.tri.reshape(-1), g_m.reshape(-1, 3))
+        for cab, gk in zip(self.cables, g_k):
+            grad.index_add_(0, cab.vertices, gk)
         if g_f is not None:
             grad[: len(g_f)] += g_f
         if check and not bool(torch.isfinite(grad).all()):
@@ -238,6 +272,8 @@ class StateProblem:
         data = torch.zeros(self.model.pattern.nnz, dtype=x.dtype, device=x.device)
         data.index_add_(0, self.elem_pos, h_m.reshape(-1)[self.elem_sel])
         data.index_add_(0, self.vert_pos, h_c.reshape(-1, 9)[:, self.vert_sel].reshape(-1))
+        for block, sel, pos in zip(h_k, self.cable_sel, self.cable_pos):
+            data.index_add_(0, pos, block.reshape(-1)[sel])
         hess = data.cpu().numpy() + self.spring_hess
         if check and not np.all(np.isfinite(hess)):
             raise SimulationError(f"state {self.name!r}: non-finite Hessian")
@@ -257,6 +293,19 @@ class StateProblem:
             if hs is not None:
                 h = h.index_add(0, idx, hs)
         return e, g, h
+
+    def _cable_terms(self, x: torch.Tensor, order: int, exact: bool = False):
+        """Per ON cable (``sim.cable``): energies (J), gradients over its vertices (v, 3) and
+        Hessian blocks (3v, 3v) (``exact``: unprojected); empty lists without cables."""
+        out = [cable_energy(x, c, order, project=not exact) for c in self.cables]
+        return [o[0] for o in out], [o[1] for o in out], [o[2] for o in out]
+
+    def _with_cables(self, e_m: torch.Tensor, e_k) -> torch.Tensor:
+        """Per-element membrane energies (M,) with each cable's energy shared among its
+        strip's elements by rest area."""
+        for c, ek in zip(self.cables, e_k):
+            e_m = e_m.index_add(0, c.elements, ek * c.share)
+        return e_m
 
     def _split_terms(self, e_m, e_c, e_s, e_f) -> dict[str, torch.Tensor]:
         m = self.m_garment
@@ -284,6 +333,8 @@ class StateProblem:
         _, g_s = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=1)
         g = g_s.clone()
         g.index_add_(0, self.tri.reshape(-1), g_m.reshape(-1, 3))
+        for c, gk in zip(self.cables, self._cable_terms(x, 1)[1]):
+            g.index_add_(0, c.vertices, gk)
         f, gf = self.contact_linearization(x)
         gf = gf[:n]
         normal = gf / np.maximum(np.linalg.norm(gf, axis=1), 1e-300)[:, None]
@@ -298,6 +349,7 @@ class StateProblem:
         """Energy by term (J; ``friction`` is the dissipation potential, not stored energy)
         and per-element membrane energy (M,) J at x."""
         e_m, _, _ = self._membrane(x, 0, self.projection)
+        e_m = self._with_cables(e_m, self._cable_terms(x, 0)[0])
         e_c, _, _ = contact(x, self.k_contact, *self._contact_args(x), order=0, pre=self._pre)
         e_s, _ = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=0)
         e_f, _, _ = self._friction(x, 0)

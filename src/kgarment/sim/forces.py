@@ -10,7 +10,8 @@ line), a strip in tension is pulled outwards at both ends, so its tension is::
 
     T = (-F_A . u_A + F_B . u_B) / 2      (N; negative: compression)
 
-The two halves differ only by the weak ties and contact along the strip.
+The two halves differ only by the weak ties and contact along the strip.  A cable clutch
+(``sim.cable``) pulls on the same anchors, so its tension is measured the same way.
 """
 
 from __future__ import annotations

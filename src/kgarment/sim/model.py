@@ -40,6 +40,7 @@ import numpy as np
 from kgarment.clutch.strip import ClutchStrip
 from kgarment.constants import FRICTION_SLIP
 from kgarment.sim.assembly import HessianPattern, build_pattern
+from kgarment.sim.cable import path_length, strip_path
 from kgarment.sim.contact import ImplicitBody, onto_surface
 from kgarment.sim.materials import MaterialPreset, get_preset
 from kgarment.sim.membrane import TriangleElements
@@ -84,6 +85,10 @@ class SimModel:
         elements relax like the cloth's and their sliders (``sim.slip``) only pull
     friction : skin-garment friction coefficient (``sim.friction``; 0: frictionless, the
         paper's model);  friction_slip : the slip (m) at which friction reaches its force
+    clutch_cable : an ON clutch carries one pull-only force along its length (``sim.cable``)
+        instead of stiffening its elements;  cable_paths : per clutch with ``clutch_cable``,
+        (vertex ids (v,), W (P, v), rest length m) of its path along the strip
+        (``sim.cable.strip_path``); the Hessian pattern couples each path's vertices
     """
 
     preset: MaterialPreset
@@ -105,6 +110,8 @@ class SimModel:
     clutch_buckle: bool = False
     friction: float = 0.0
     friction_slip: float = FRICTION_SLIP
+    clutch_cable: bool = False
+    cable_paths: tuple = field(default=(), repr=False)
 
     @property
     def slips(self) -> bool:
@@ -164,6 +171,7 @@ def build_model(
     holding_force=None,
     clutch_buckle: bool = False,
     friction: float = 0.0,
+    clutch_cable: bool = False,
 ) -> SimModel:
     """Build the simulation model.
 
@@ -172,7 +180,9 @@ def build_model(
     holding_force : None (every clutch locked, the paper's model) or (K,) newtons per
     clutch, ``inf`` for a locked one (``sim.slip``);  clutch_buckle : the strips take no
     compression (the paper's model: False);  friction : skin-garment friction coefficient
-    (``sim.friction``; 0, the paper's model: frictionless).
+    (``sim.friction``; 0, the paper's model: frictionless);  clutch_cable : an ON clutch is
+    a pull-only cable along its length (``sim.cable``; needs ``holding_force``), not a
+    stiff band (the paper's model: False).
     """
     X = np.ascontiguousarray(garment_vertices, dtype=np.float64)
     F = np.ascontiguousarray(garment_faces, dtype=np.int64)
@@ -213,7 +223,10 @@ def build_model(
     e = np.unique(np.sort(e, axis=1), axis=0)
     mean_edge = float(np.linalg.norm(X[e[:, 0]] - X[e[:, 1]], axis=1).mean())
     static = SpringSet.concat(springs)
-    pattern = build_pattern(n_all, elems.tri, static.index)
+    paths = [(voff[k + 1] + ids, W, path_length(W @ c.rest_vertices()[ids]))
+             for k, (c, (ids, W)) in enumerate(zip(clutches, (strip_path(c.anchors, c.centerline) for c in clutches)))] \
+        if clutch_cable else []
+    pattern = build_pattern(n_all, elems.tri, static.index, [ids for ids, _, _ in paths])
     hold = None
     if not (np.isfinite(friction) and friction >= 0.0):
         raise ValueError(f"friction must be a coefficient >= 0, got {friction}")
@@ -221,12 +234,15 @@ def build_model(
         hold = np.asarray(holding_force, dtype=np.float64).reshape(-1)
         if hold.shape != (len(clutches),) or np.any(np.isnan(hold)) or np.any(hold <= 0):
             raise ValueError(f"holding_force must be {len(clutches)} positive forces (inf: locked)")
+    if clutch_cable and clutches and hold is None:
+        raise ValueError("clutch_cable needs holding_force (inf for a cable that never slips)")
     return SimModel(preset=mat, garment_rest=X, garment_faces=F, clutches=clutches,
                     vertex_offsets=np.array(voff), face_offsets=np.array(foff), elements=elems,
                     relaxed=relaxed, vertex_area=varea, mean_edge=mean_edge, static_springs=static,
                     pattern=pattern, penalties=penalties, holding_force=hold,
                     slip_coef=np.concatenate(coef) if coef else np.zeros((0, 3)), strip_width=np.array(width),
-                    clutch_buckle=bool(clutch_buckle), friction=float(friction))
+                    clutch_buckle=bool(clutch_buckle), friction=float(friction), clutch_cable=bool(clutch_cable),
+                    cable_paths=tuple(paths))
 
 
 @dataclass(frozen=True)
