@@ -108,7 +108,7 @@ def test_force_over_the_motion(runs, anny_body, capsys):
     np.testing.assert_allclose(motions[index[-1][0]].garment_x0, target.garment_x0, atol=1e-9)
     assert not np.allclose(motions[index[0][0]].garment_x0, target.garment_x0, atol=1e-3)
     assert main(["-q", "evaluate", str(cli), "--path", "2", "--no-loads", "--json", str(cli / "with-path.json")]) == 0
-    (written,) = [p for p in cli.glob("path-*.json") if not p.stem.endswith("-slip")]  # path-ITERATION
+    (written,) = [p for p in cli.glob("path-*.json") if not p.stem.endswith(("-slip", "-cable"))]  # path-ITERATION
     doc = json.loads(written.read_text())
     # the evaluation comes after the path, whose ends competed with the two starts
     # (tests/test_design_pick.py); each row says which was kept
@@ -144,20 +144,22 @@ def test_force_over_the_motion(runs, anny_body, capsys):
     assert json.loads(written.read_text()) == doc
 
 
-def test_force_over_the_motion_with_slipping_clutches(runs, capsys):
-    """``evaluate --holding-force N --path K``: the same run judged with clutches that slide
-    at N newtons; its files go beside the run's own (path-K-slip), and the ON tension stays
-    near N once the clutch slides, from where the report says."""
+@pytest.mark.parametrize("model", ["slip", "cable"])
+def test_force_over_the_motion_with_slipping_clutches(runs, capsys, model):
+    """``evaluate --clutch-model slip|cable --holding-force N --path K``: the same run judged
+    with clutches that slide at N newtons (bands, or cables between their ends); its files
+    go beside the run's own (path-K-MODEL), and the ON tension stays near N once the clutch
+    slides, from where the report says."""
     cli, _, _ = runs
     k = json.loads((cli / "final" / "evaluation.json").read_text())["iteration"]
     locked = json.loads((cli / "final" / "evaluation.json").read_text())
     t_locked = max(c["tension_N"] for c in locked["clutches"])
     hold = 0.5 * t_locked
-    assert main(["-q", "evaluate", str(cli), "--path", "2", "--holding-force", f"{hold}", "--json",
-                 str(cli / "slip.json")]) == 0
-    doc = json.loads((cli / f"path-{k}-slip.json").read_text())
+    assert main(["-q", "evaluate", str(cli), "--path", "2", "--clutch-model", model, "--holding-force", f"{hold}",
+                 "--json", str(cli / f"{model}.json")]) == 0
+    doc = json.loads((cli / f"path-{k}-{model}.json").read_text())
     assert doc["holding_N"] == {"arm_flexion.right": {"elbow_outer.R": pytest.approx(hold)}}
-    (c,) = json.loads((cli / "slip.json").read_text())["clutches"]
+    (c,) = json.loads((cli / f"{model}.json").read_text())["clutches"]
     assert c["slipping"] and c["holding_N"] == pytest.approx(hold)
     assert hold <= c["tension_N"] < 1.2 * hold  # at its holding force (+ the guide and the hardening)
     assert doc["slips"] and doc["slips"][0]["clutch"] == "elbow_outer.R"
