@@ -6,14 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from tube_strip import pull_strip
 
 from kgarment.sim import (
-    SimState,
-    SolverOptions,
     StateProblem,
     build_model,
-    clutch_tensions,
-    solve_states,
 )
 from kgarment.sim.cable import Cable, cable_energy, path_length, strip_path
 from kgarment.sim.materials import REFERENCE
@@ -137,23 +134,6 @@ def test_a_strip_shortened_on_the_whole_is_slack_however_its_parts_are_stretched
     assert full[lam > 1.039].sum() > 0.3 * full.sum()
 
 
-def _pull(stretch, hold, cable, activation=1.0):
-    tube = Tube(0.05, 0.0, 0.3, 48, 31)
-    width = 0.01
-    clutch = tube.clutch("c0", 0.3, 0.08, 0.22, width, 28)
-    model = build_model(tube.vertices, tube.faces, [clutch], preset="reference",
-                        holding_force=[hold], clutch_cable=cable)
-    state = SimState.create(tube.motion("pull", stretch, 0.0), [activation])
-    design = np.ones(model.n_faces)
-    (r,) = solve_states(model, design, [state], options=SolverOptions(tol=1e-7, max_iter=400))
-    assert r.converged
-    _, (xc,) = model.split(r.x)
-    line, rest = xc[clutch.centerline], clutch.rest_vertices()[clutch.centerline]
-    eps = np.linalg.norm(np.diff(line, axis=0), axis=1).sum() / np.linalg.norm(np.diff(rest, axis=0), axis=1).sum() - 1
-    (t,) = clutch_tensions(model, design, state, r.x)
-    return eps, t, width, model, state, r
-
-
 @pytest.mark.parametrize("stretch", [0.001, 0.03, -0.02])
 @pytest.mark.parametrize("activation", [1.0, 0.5])
 def test_a_cable_strip_in_uniaxial_tension_follows_the_hand_calculation(stretch, activation):
@@ -166,7 +146,7 @@ def test_a_cable_strip_in_uniaxial_tension_follows_the_hand_calculation(stretch,
     s_on = ((activation * REFERENCE.young_clutch_on + (1 - activation) * REFERENCE.young_clutch_off)
             * (activation * REFERENCE.thick_clutch_on + (1 - activation) * REFERENCE.thick_clutch_off))
     s_off = REFERENCE.young_clutch_off * REFERENCE.thick_clutch_off
-    eps, t, w, model, state, r = _pull(stretch, hold, True, activation)
+    eps, t, w, model, state, r = pull_strip(stretch, hold, activation, cable=True)
     cap = activation**2 * hold
     e_h = cap / ((s_on - s_off) * w)
     assert not (1 - SMOOTH) * e_h < eps < (1 + SMOOTH) * e_h
@@ -182,7 +162,7 @@ def test_a_cable_strip_in_uniaxial_tension_follows_the_hand_calculation(stretch,
         cable = cap * (1 + HARDENING * (eps - (1 + SMOOTH) * e_h))
     assert t == pytest.approx(cable + s_off * w * eps, rel=0.05, abs=0.02 * s_off * w * abs(eps))
     if stretch > 0:
-        _, t_slip, _, _, _, _ = _pull(stretch, hold, False, activation)
+        _, t_slip, _, _, _, _ = pull_strip(stretch, hold, activation)
         assert t == pytest.approx(t_slip, rel=0.03)
 
 
@@ -190,7 +170,7 @@ def test_the_assembled_hessian_holds_the_cable_block():
     """With a cable ON, the simulator's Hessian (CSC pattern with the strip's dense block)
     times a direction equals the finite difference of its gradient along it (contact off:
     its Hessian is the IMLS's approximation, checked in test_sim_contact)."""
-    _, _, _, model, state, r = _pull(0.03, 1e5, True)
+    _, _, _, model, state, r = pull_strip(0.03, 1e5, cable=True)
     prob = StateProblem(model, np.ones(model.n_faces), state)
     assert len(prob.cables) == 1 and len(model.pattern.dense_pos) == 1
     prob.k_contact = torch.zeros_like(prob.k_contact)

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from tube_strip import pull_strip
 
-from kgarment.sim import SimState, SolverOptions, build_model, clutch_tensions, solve_states
+from kgarment.sim import build_model
 from kgarment.sim.materials import REFERENCE
 from kgarment.sim.slip import (
     EPS0,
@@ -126,23 +127,6 @@ def test_electrostatic_stress_is_the_parallel_plate_formula():
     assert electrostatic_stress(100.0, 10e-6, 2.0, 0.5) == pytest.approx(0.5 * EPS0 * 1e14, rel=1e-12)
 
 
-def _pull(stretch, hold, activation=1.0):
-    tube = Tube(0.05, 0.0, 0.3, 48, 31)
-    width = 0.01
-    clutch = tube.clutch("c0", 0.3, 0.08, 0.22, width, 28)
-    model = build_model(tube.vertices, tube.faces, [clutch], preset="reference",
-                        holding_force=None if hold is None else [hold])
-    state = SimState.create(tube.motion("pull", stretch, 0.0), [activation])
-    design = np.ones(model.n_faces)
-    (r,) = solve_states(model, design, [state], options=SolverOptions(tol=1e-7, max_iter=400))
-    assert r.converged
-    _, (xc,) = model.split(r.x)
-    line, rest = xc[clutch.centerline], clutch.rest_vertices()[clutch.centerline]
-    eps = np.linalg.norm(np.diff(line, axis=0), axis=1).sum() / np.linalg.norm(np.diff(rest, axis=0), axis=1).sum() - 1
-    (t,) = clutch_tensions(model, design, state, r.x)
-    return eps, t, width
-
-
 @pytest.mark.parametrize("stretch", [0.001, 0.03])
 @pytest.mark.parametrize("activation", [1.0, 0.5])
 def test_a_strip_holds_up_to_its_holding_force_and_slides_at_it_beyond(stretch, activation):
@@ -155,14 +139,14 @@ def test_a_strip_holds_up_to_its_holding_force_and_slides_at_it_beyond(stretch, 
     s_on = ((activation * REFERENCE.young_clutch_on + (1 - activation) * REFERENCE.young_clutch_off)
             * (activation * REFERENCE.thick_clutch_on + (1 - activation) * REFERENCE.thick_clutch_off))
     s_off = REFERENCE.young_clutch_off * REFERENCE.thick_clutch_off
-    eps, t, w = _pull(stretch, hold, activation)
+    eps, t, w, _, _, _ = pull_strip(stretch, hold, activation)
     cap = activation**2 * hold
     e_h = cap / ((s_on - s_off) * w)
     assert not (1 - SMOOTH) * e_h < eps < (1 + SMOOTH) * e_h  # a case on the ramp would test less
     slider = (s_on - s_off) * w * eps if eps < e_h else cap * (1 + HARDENING * (eps - (1 + SMOOTH) * e_h))
     assert t == pytest.approx(slider + s_off * w * eps, rel=0.05)
-    eps_l, t_l, _ = _pull(stretch, None, activation)
-    _, t_h, _ = _pull(stretch, 20.0, activation)
+    eps_l, t_l, _, _, _, _ = pull_strip(stretch, None, activation)
+    _, t_h, _, _, _, _ = pull_strip(stretch, 20.0, activation)
     assert t_h == pytest.approx(t_l, rel=0.05)  # the same strip; the slider has no Poisson coupling
     assert t_l == pytest.approx(s_on * w * eps_l, rel=0.05)
     if (s_on - s_off) * w * eps_l > 1.5 * activation**2 * hold:  # it slides: lower force, longer strip
