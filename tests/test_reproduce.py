@@ -349,6 +349,20 @@ def test_the_reproduction_keeps_the_papers_clutch_strips():
     assert not experiment_problem(exp, res, overrides={"buckle": None, "preset": None}).clutch_spec().hardware.buckle
 
 
+def test_the_reproduction_keeps_the_papers_clutches():
+    """The selective sleeve's example designs with cable clutches; the reproduction makes
+    it with the paper's locked clutches unless told a clutch model or holding force."""
+    from kgarment.problem import example_path, load_problem
+    from kgarment.reproduce.catalog import BY_NAME, RESOLUTIONS
+    from kgarment.reproduce.experiments import experiment_problem
+
+    exp, res = BY_NAME["sleeve_selective"], RESOLUTIONS["tiny"]
+    assert load_problem(example_path(exp.name)).clutch_spec().hardware.model == "cable"
+    assert experiment_problem(exp, res).clutch_spec().hardware.model == "locked"
+    assert experiment_problem(exp, res, overrides={"clutch_model": "cable"}).clutch_spec().hardware.model == "cable"
+    assert experiment_problem(exp, res, overrides={"holding_force": 50.0}).clutch_spec().hardware.model == "cable"
+
+
 def test_the_report_names_an_experiments_early_poses():
     """An experiment designed also for the beginning of a motion says so; one without says nothing."""
     from kgarment.reproduce.report import early_note

@@ -49,6 +49,7 @@ log = logging.getLogger(__name__)
 
 
 PAPER_BUCKLE = False  # the paper's clutch strips resist being shortened as stiffly as being stretched
+PAPER_CLUTCH_MODEL = "locked"  # the paper's ON clutches never slip
 
 
 def experiment_problem(exp: Experiment, res: Resolution, objective: str = "active",
@@ -59,11 +60,17 @@ def experiment_problem(exp: Experiment, res: Resolution, objective: str = "activ
     belongs to the active objective and is dropped for the others).  The clutch strips are
     the paper's (:data:`PAPER_BUCKLE`) unless the overrides say ``buckle``: the example files'
     buckling strips are for designing garments, the reproduction reproduces the paper's
-    model (README, "Clutches that buckle")."""
+    model (README, "Clutches that buckle"); so are its clutches (:data:`PAPER_CLUTCH_MODEL`)
+    where an example file names another model (the selective sleeve's cables) and the
+    overrides give no clutch model or holding force."""
     overrides = dict(overrides or {})
     if overrides.get("buckle") is None:
         overrides["buckle"] = PAPER_BUCKLE
-    p = override(load_problem(example_path(exp.name)), **overrides)
+    source = load_problem(example_path(exp.name))
+    if (overrides.get("clutch_model") is None and overrides.get("holding_force") is None
+            and source.clutch_spec().hardware.model != PAPER_CLUTCH_MODEL):
+        overrides["clutch_model"] = PAPER_CLUTCH_MODEL
+    p = override(source, **overrides)
     g, d = p.garment, p.design
     if res.subdivision is not None:
         g = dataclasses.replace(g, subdivision=res.subdivision)
