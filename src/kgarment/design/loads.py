@@ -289,8 +289,8 @@ def load_chart(report: LoadReport, path, title: str = "") -> Path:
         ax.grid(axis="y", alpha=0.3)
     axes[0][0].set_ylabel("share of the ON - OFF energy")
     values = [v for c in report.clutches for v in (c.share, c.needed) if math.isfinite(v)]
-    axes[0][0].set_ylim(min(0.0, *values) - 0.05, max(1.05, *values) + 0.1)
-    axes[0][-1].legend(fontsize=6, loc="upper right")
+    axes[0][0].set_ylim(min(0.0, *values) - 0.05, max(1.05, *values) + 0.3)  # room for the legend above the bars
+    axes[0][-1].legend(fontsize=6, loc="upper right", ncol=2)
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
