@@ -12,7 +12,7 @@ from kgarment.sim import (
     StateProblem,
     build_model,
 )
-from kgarment.sim.cable import Cable, cable_energy, path_length, strip_path
+from kgarment.sim.cable import Cable, cable_energy, strip_path
 from kgarment.sim.materials import REFERENCE
 from kgarment.sim.membrane import TriangleElements
 from kgarment.sim.slip import (
@@ -20,6 +20,7 @@ from kgarment.sim.slip import (
     SMOOTH,
     SliderSet,
     axial_coefficients,
+    path_length,
     rest_width,
     slider_energy,
     slider_law,

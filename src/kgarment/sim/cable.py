@@ -84,11 +84,6 @@ def strip_path(anchors: np.ndarray, centerline: np.ndarray) -> tuple[np.ndarray,
     return ids, W
 
 
-def path_length(points: np.ndarray) -> float:
-    """Length (m) of a polyline (P, 3)."""
-    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
-
-
 @dataclass(frozen=True)
 class Cable:
     """One ON clutch's cable (torch tensors where arrays).

@@ -40,11 +40,11 @@ import numpy as np
 from kgarment.clutch.strip import ClutchStrip
 from kgarment.constants import FRICTION_SLIP
 from kgarment.sim.assembly import HessianPattern, build_pattern
-from kgarment.sim.cable import path_length, strip_path
+from kgarment.sim.cable import strip_path
 from kgarment.sim.contact import ImplicitBody, onto_surface
 from kgarment.sim.materials import MaterialPreset, get_preset
 from kgarment.sim.membrane import TriangleElements
-from kgarment.sim.slip import axial_coefficients, rest_width
+from kgarment.sim.slip import axial_coefficients, path_length, rest_width
 from kgarment.sim.springs import SpringSet, binding_springs
 
 
@@ -195,7 +195,7 @@ def build_model(
     n, m = len(X), len(F)
     voff, foff = [0, n], [0, m]
     parts = [TriangleElements.from_mesh(X, F)]
-    springs, coef, width = [], [], []
+    springs, coef, width, paths = [], [], [], []
     for c in clutches:
         cf = np.asarray(c.faces, dtype=np.int64)
         nc = len(c.vertices)
@@ -210,6 +210,9 @@ def build_model(
         for ids, grp in ((anchors, "anchor"), (ties, "tie")):
             springs.append(binding_springs(ids + voff[-1], F, np.asarray(c.bind_face)[ids],
                                            np.asarray(c.bind_bary)[ids], grp))
+        if clutch_cable:
+            ids, W = strip_path(anchors, c.centerline)
+            paths.append((voff[-1] + ids, W, path_length(W @ rest[ids])))
         voff.append(voff[-1] + nc)
         foff.append(foff[-1] + len(cf))
     elems = TriangleElements.concat(parts)
@@ -223,9 +226,6 @@ def build_model(
     e = np.unique(np.sort(e, axis=1), axis=0)
     mean_edge = float(np.linalg.norm(X[e[:, 0]] - X[e[:, 1]], axis=1).mean())
     static = SpringSet.concat(springs)
-    paths = [(voff[k + 1] + ids, W, path_length(W @ c.rest_vertices()[ids]))
-             for k, (c, (ids, W)) in enumerate(zip(clutches, (strip_path(c.anchors, c.centerline) for c in clutches)))] \
-        if clutch_cable else []
     pattern = build_pattern(n_all, elems.tri, static.index, [ids for ids, _, _ in paths])
     hold = None
     if not (np.isfinite(friction) and friction >= 0.0):

@@ -91,11 +91,16 @@ def axial_coefficients(rest: np.ndarray, tri: np.ndarray, shape_grad: np.ndarray
     return np.einsum("qbj,qj->qb", shape_grad, a)
 
 
+def path_length(points: np.ndarray) -> float:
+    """Length (m) of a polyline (P, 3)."""
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+
 def rest_width(rest: np.ndarray, faces: np.ndarray, centerline: np.ndarray) -> float:
     """A strip's mean rest width (m): its rest area over its centre line's rest length."""
     p = rest[np.asarray(faces)]
     area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum()
-    return float(area / np.linalg.norm(np.diff(rest[np.asarray(centerline)], axis=0), axis=1).sum())
+    return float(area) / path_length(rest[np.asarray(centerline)])
 
 
 @dataclass(frozen=True)
