@@ -176,7 +176,8 @@ def cmd_evaluate(args) -> int:
     print(f"design: {src.run} iteration {k} ({100 * (design > 0.5).mean():.1f}% of faces reinforced)")
     path = None
     if args.path:  # first: the motion's end from rest competes with the evaluation's two starts
-        from kgarment.design.path import path_forces, path_plot
+        from kgarment.design.path import path_forces
+        from kgarment.design.path_plot import path_plot
 
         print(f"force over the motion: {args.path} frames from rest to the target pose, ON and OFF")
         path = path_forces(ev, design, p, frames=args.path, report=lambda line: print(f"  {line}", flush=True))

@@ -7,7 +7,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from kgarment.design.path import PathReport, draw_tensions
+from kgarment.design.path import PathReport
+from kgarment.design.path_plot import draw_tensions
 
 
 def force_image(report: PathReport, width_px: int = 420, row_px: int = 190) -> np.ndarray:
