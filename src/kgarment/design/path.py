@@ -375,8 +375,9 @@ def carried(model, x: np.ndarray, before, after) -> np.ndarray:
 def motion_ends(setup, design: np.ndarray, keyed, results: list, options) -> tuple[list, int]:
     """The design loop's motion start (``[solver] path_start``): each ON state of ``keyed``
     ([(StateKey, SimState)]) solved over its motion from rest -- the frames of
-    ``setup.path_frames`` (the first from the skin-tight garment, each next one from the one
-    before; all states' frame i in one batch), then the target state itself from the last
+    ``setup.path_frames`` (the first from the skin-tight garment, each next one where the
+    frames before predict it, :func:`predicted`; all states' frame i in one batch), then the
+    target state itself from the last
     frame -- and kept instead of ``results``' equilibrium (the same order) where converged and
     lower by more than :data:`MULTISTABLE`.  Returns (the results, Newton iterations spent)."""
     from kgarment.design.evaluate import Equilibrium, with_known
@@ -384,15 +385,17 @@ def motion_ends(setup, design: np.ndarray, keyed, results: list, options) -> tup
     todo = [i for i, ((m, s), _) in enumerate(keyed) if s == "on" and m in setup.path_frames]
     if not todo:
         return results, 0
-    x = [None] * len(todo)
+    past: list[list] = [[] for _ in todo]  # per state: the frames' equilibria so far [(x, Motion)]
     newton = 0
     n = len(setup.path_frames[keyed[todo[0]][0][0]])  # every motion has as many frames
     for f in range(n + 1):
         states = [st if f == n else SimState.create(setup.path_frames[k[0]][f], st.activation, name=f"{st.name}@{f + 1}")
                   for k, st in (keyed[i] for i in todo)]
-        solved = setup.solve(design, states, warm_start=x, options=options)
+        warm = [predicted(setup.model_of(keyed[i][0][0]), p[-2:], st.motion) for i, p, st in zip(todo, past, states)]
+        solved = setup.solve(design, states, warm_start=warm, options=options)
         newton += sum(r.convergence.iterations for r in solved)
-        x = [r.x for r in solved]
+        for p, st, r in zip(past, states, solved):
+            p.append((r.x, st.motion))
     out = list(results)
     for i, end in zip(todo, solved):
         if with_known(Equilibrium(out[i]), end).from_path:
