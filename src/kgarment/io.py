@@ -100,6 +100,21 @@ MARKER = ".kgarment"  # in every folder kgarment creates: what wrote it (JSON)
 RUN_FILES = ("problem.toml", "problem.txt")  # a run folder written before the marker existed
 
 
+def save_figure(fig, path, title: str = "") -> Path:
+    """Write the matplotlib figure ``fig`` to ``path`` (its folder made; the format from the
+    suffix), with ``title`` above it where given, laid out tight, and close it."""
+    import matplotlib.pyplot as plt
+
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
 def mark_folder(path, kind: str) -> Path:
     """Mark ``path`` as a folder kgarment created (``kind``: run, fabrication, ...)."""
     from kgarment import __version__

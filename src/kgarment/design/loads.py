@@ -54,6 +54,7 @@ import numpy as np
 import torch
 
 from kgarment.constants import LOAD_TOL, LOADED_SHARE, MIN_GAIN
+from kgarment.io import save_figure
 from kgarment.sim import StateResult, clutch_tensions, prepare_state
 from kgarment.sim.slip import slides
 
@@ -291,11 +292,4 @@ def load_chart(report: LoadReport, path, title: str = "") -> Path:
     values = [v for c in report.clutches for v in (c.share, c.needed) if math.isfinite(v)]
     axes[0][0].set_ylim(min(0.0, *values) - 0.05, max(1.05, *values) + 0.3)  # room for the legend above the bars
     axes[0][-1].legend(fontsize=6, loc="upper right", ncol=2)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)

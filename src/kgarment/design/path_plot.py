@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from kgarment.design.path import PathFrame, PathReport
+from kgarment.io import save_figure
 
 
 def draw_tensions(ax, report: PathReport, motion: str) -> tuple[list[PathFrame], list[PathFrame]]:
@@ -53,13 +54,6 @@ def path_plot(report: PathReport, path, title: str = "") -> Path:
                     ax.axhline(h, color=f"C{k % 10}", lw=0.8, ls=":", alpha=0.8)
     axes[0][0].set_ylabel("clutch tension (N)")
     axes[0][0].legend(fontsize=6, loc="upper left")
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)
 
 

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.io import save_figure
+
 KINDS = (("ours", "#1f3b73"), ("manual", "#d98c1f"), ("compliance", "#7a9e3a"), ("random", "#999999"))
 
 
@@ -131,10 +133,4 @@ def force_figure(path: Path, paths: dict, title: str) -> Path:
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("largest clutch tension (N)")
     axes[0][0].legend(fontsize=6)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)
