@@ -6,7 +6,10 @@ and evaluates designs with the one design evaluator
 problem's objective.  Results are cached in a JSON file keyed by the experiment, a hash of
 the built problem (its fields and its clutches as laid) and a hash of the design, so an
 interrupted ``reproduce`` picks up where it stopped and a changed problem is not served
-stale numbers.
+stale numbers.  Below that, every solve the evaluations make is kept in the reproduction
+folder's ``runs/equilibria/`` (:mod:`kgarment.design.store`): an evaluation or a force over
+the motion interrupted half way (the long sleeve's paths take an hour or more at the
+default resolution) goes on from the solves it had done, reading them back to the last digit.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import numpy as np
 
 from kgarment.constants import SIM_MODEL
 from kgarment.design import Evaluator
+from kgarment.design.store import FOLDER, EquilibriumStore
 from kgarment.io import atomic_write_text
 from kgarment.problem import Problem, build_body, build_clutches, build_garment, problem_to_dict
 
@@ -75,8 +79,9 @@ class CachedEvaluator:
         self.garment = build_garment(problem, self.body)
         self.strips = build_clutches(problem, self.body, self.garment)
         self.name = f"{name}#{problem_key(problem, self.strips)}"
+        store = None if cache is None else EquilibriumStore(cache.path.parent / "runs" / FOLDER)
         self.evaluator = Evaluator.from_problem(problem, body=self.body, garment=self.garment, strips=self.strips,
-                                                device=device, objective="active")
+                                                device=device, objective="active", store=store)
         self.setup = self.evaluator.setup
         self._paths: dict = {}  # (design key, frames) -> PathReport (:meth:`_path_report`)
 
