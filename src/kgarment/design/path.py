@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -313,9 +314,12 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
                                                          for j in range(i)]
         return past[-2:]
 
+    started = time.perf_counter()
     for i in range(frames):
         if report is not None:
-            report(f"frame {i + 1}/{frames} (t = {(i + 1) / frames:.2f})")
+            spent = time.perf_counter() - started
+            eta = f", {spent:.0f} s so far, about {spent / i * (frames - i):.0f} s to go" if i else ""
+            report(f"frame {i + 1}/{frames} (t = {(i + 1) / frames:.2f}{eta})")
         keys = [(m, s, i) for m in motions for s in STATES]
         states = [state(by_motion[m][i][0], m, s) for m, s, _ in keys]
         warm = [predicted(model, before(m, s, i), st.motion) for (m, s, _), st in zip(keys, states)]
