@@ -40,6 +40,8 @@ def test_tiny_design_run(tmp_path, anny_body, objective):
     final = json.loads((run / "final" / "evaluation.json").read_text())
     assert final["iteration"] == 2 and {r["state"] for r in final["rows"]} == set(states)
     assert "evaluated like kgarment evaluate" in out
+    # what to run next, where there are clutches to feel
+    assert ("kgarment evaluate run --path 10; " in out and "kgarment plan run;" in out) == (objective != "passive")
     if objective == "passive":  # no clutches in the passive objective: no loads
         assert "clutches" not in final
     else:

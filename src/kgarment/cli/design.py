@@ -73,6 +73,12 @@ def print_summary(dr, seconds: float) -> None:
     print(f"results in {dr.run}/: metrics.csv, metrics.json, progress.png, designs.npz, final/")
     for path in dr.paths:
         print(f"  {path}")
+    if dr.evaluation is not None and dr.evaluation.loads is not None and not dr.setup.wearers:  # clutches to feel
+        from kgarment.design.path import PATH_FRAMES
+
+        print(f"next: the force each clutch carries over the motion: kgarment evaluate {dr.run} --path {PATH_FRAMES}; "
+              f"which clutches to switch on for which motion: kgarment plan {dr.run}; cut files: "
+              f"kgarment fabricate {dr.run}")
 
 
 def cmd_design(args) -> int:
