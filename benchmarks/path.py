@@ -35,6 +35,18 @@ from kgarment.problem import load_problem
 RESULTS = Path(__file__).resolve().parent / "results.json"
 
 
+def run_copy(run: Path, folder: Path) -> tuple[EquilibriumStore, int]:
+    """An EquilibriumStore in ``folder`` holding a copy of ``run``'s equilibria as its final
+    evaluation left them (entries not newer than ``final/evaluation.json``; none for a run
+    made with --no-evaluation), and how many."""
+    final = run / "final" / "evaluation.json"
+    end = final.stat().st_mtime if final.is_file() else float("-inf")
+    kept = [f for f in sorted((run / FOLDER).glob("*.npz")) if f.stat().st_mtime <= end]
+    for f in kept:
+        shutil.copy2(f, folder / f.name)
+    return EquilibriumStore(folder), len(kept)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run", nargs="?", default="runs/demo")
@@ -44,25 +56,16 @@ def main() -> None:
     src = parse_design_source(a.run, run_required=True)
     problem = load_problem(src.run / "problem.toml")
     problem, body, garment, strips = run_inputs(src.run, problem)
-    tmp = Path(tempfile.mkdtemp(prefix="kgarment-path-bench-"))
-    kept = 0
-    if not a.cold:
-        final = src.run / "final" / "evaluation.json"  # a run made with --no-evaluation has none
-        end = final.stat().st_mtime if final.is_file() else float("-inf")
-        for f in sorted((src.run / FOLDER).glob("*.npz")):
-            if f.stat().st_mtime <= end:
-                shutil.copy2(f, tmp / f.name)
-                kept += 1
-    store = None if a.cold else EquilibriumStore(tmp)
-    ev = Evaluator.from_problem(problem, body=body, garment=garment, strips=strips, store=store)
-    design = load_design(src, ev.n_faces)
-    t0 = time.time()
-    frame_motions(problem, ev.motions, a.frames)  # posing (cached on disk after the first time)
-    t_pose = time.time() - t0
-    t0 = time.time()
-    rep = path_forces(ev, design, problem, frames=a.frames)
-    wall = time.time() - t0
-    shutil.rmtree(tmp, ignore_errors=True)
+    with tempfile.TemporaryDirectory(prefix="kgarment-path-bench-") as tmp:
+        store, kept = (None, 0) if a.cold else run_copy(src.run, Path(tmp))
+        ev = Evaluator.from_problem(problem, body=body, garment=garment, strips=strips, store=store)
+        design = load_design(src, ev.n_faces)
+        t0 = time.time()
+        frame_motions(problem, ev.motions, a.frames)  # posing (cached on disk after the first time)
+        t_pose = time.time() - t0
+        t0 = time.time()
+        rep = path_forces(ev, design, problem, frames=a.frames)
+        wall = time.time() - t0
     print(rep.table())
     out = {"run": str(src.run), "iteration": iteration_of(src), "frames": a.frames, "motions": ev.motions,
            "run_equilibria": kept, "read_back": 0 if store is None else store.hits,

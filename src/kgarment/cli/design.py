@@ -57,11 +57,12 @@ def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: b
 
 
 def print_summary(dr, seconds: float) -> None:
+    from kgarment.design.path import PATH_FRAMES
+
     st = dr.state
     row = st.metrics[-1]
     print(f"\n{len(st.metrics)} iterations in {seconds:.0f} s; last iteration {rho_line(row, list(dr.setup.motions))}")
     if dr.evaluation is not None:
-        from kgarment.design.path import PATH_FRAMES
         from kgarment.design.run import final_iteration
 
         k = final_iteration(dr.run)
@@ -74,8 +75,6 @@ def print_summary(dr, seconds: float) -> None:
     for path in dr.paths:
         print(f"  {path}")
     if dr.evaluation is not None and dr.evaluation.loads is not None and not dr.setup.wearers:  # clutches to feel
-        from kgarment.design.path import PATH_FRAMES
-
         print(f"next: the force each clutch carries over the motion: kgarment evaluate {dr.run} --path {PATH_FRAMES}; "
               f"which clutches to switch on for which motion: kgarment plan {dr.run}; cut files: "
               f"kgarment fabricate {dr.run}")

@@ -202,26 +202,27 @@ def _moving(curve: list[PathFrame], k: int) -> np.ndarray:
 
 
 def _rest_states(setup, motions, sim_motions) -> tuple[dict, dict]:
-    """The rest pose's states of ``motions``: (activation per (motion, state), and per
-    distinct activation (its bytes) the evaluator key and SimState; states of equal
-    activation are one state)."""
-    acts = {(m, s): setup.on_activation(m) if s == "on" else np.zeros(setup.n_clutches)
-            for m in motions for s in STATES}
+    """The rest pose's states of ``motions``: ({(motion, state): its key}, {key: (evaluator
+    key, SimState)}); states of equal activation (the key: its bytes) are one state."""
+    key_of: dict[tuple[str, str], bytes] = {}
     unique: dict[bytes, tuple] = {}
-    for (m, s), a in acts.items():
-        b = np.asarray(a, dtype=np.float64).tobytes()
-        if b not in unique:  # keyed "@rest": the evaluator keeps equilibria per key (a motion may be "rest")
-            label = f"on:{m}" if s == "on" else "off"  # "off": the clutched states' second start
-            unique[b] = (("@rest", label), SimState.create(sim_motions[REST], a, name=f"rest[{label}]"))
-    return acts, unique
+    for m in motions:
+        for s in STATES:
+            a = np.asarray(setup.on_activation(m) if s == "on" else np.zeros(setup.n_clutches), dtype=np.float64)
+            key_of[(m, s)] = b = a.tobytes()
+            if b not in unique:  # keyed "@rest": the evaluator keeps equilibria per key (a motion may be "rest")
+                label = f"on:{m}" if s == "on" else "off"  # "off": the clutched states' second start
+                unique[b] = (("@rest", label), SimState.create(sim_motions[REST], a, name=f"rest[{label}]"))
+    return key_of, unique
 
 
-def _rest_starts(evaluator, design: np.ndarray, motions, sim_motions) -> dict:
-    """{(motion, state): the design's equilibrium at rest from the evaluator's starts}
-    (:meth:`kgarment.design.Evaluator.equilibria`, kept by the evaluator: asking again is free)."""
-    acts, unique = _rest_states(evaluator.setup, motions, sim_motions)
+def _rest_starts(evaluator, design: np.ndarray, rest: tuple[dict, dict]) -> dict:
+    """{(motion, state): the design's equilibrium at rest from the evaluator's starts} of the
+    states ``rest`` (:func:`_rest_states`; :meth:`kgarment.design.Evaluator.equilibria`, kept
+    by the evaluator: asking again is free)."""
+    key_of, unique = rest
     best = dict(zip(unique, evaluator.equilibria(design, list(unique.values()))))
-    return {k: best[np.asarray(a, dtype=np.float64).tobytes()] for k, a in acts.items()}
+    return {k: best[b] for k, b in key_of.items()}
 
 
 def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: int = PATH_FRAMES,
@@ -243,27 +244,27 @@ def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: in
     if sim_motions is None or first is None:
         sim_motions, index = frame_motions(problem, motions, frames, rest=True, attached=attached)
         labels = {m: next(label for label, mm, _ in index if mm == m) for m in motions}
-    acts, unique = _rest_states(setup, motions, sim_motions)
-    start = _rest_starts(evaluator, design, motions, sim_motions)
+    key_of, unique = rest = _rest_states(setup, motions, sim_motions)
+    start = _rest_starts(evaluator, design, rest)
     if first is None:
-        keys = list(acts)
-        states = [SimState.create(sim_motions[labels[m]], acts[(m, s)], name=f"{m}@1[{s}]") for m, s in keys]
+        keys = list(key_of)
+        states = [SimState.create(sim_motions[labels[m]], unique[key_of[(m, s)]][1].activation, name=f"{m}@1[{s}]")
+                  for m, s in keys]
         got = setup.solve(design, states, options=setup.solver,
                           warm_start=[predicted(model, _from_rest(start[k], sim_motions), st.motion)
                                       for k, st in zip(keys, states)])
         first = {k: r.x for k, r in zip(keys, got)}
-    bytes_of = {k: np.asarray(a, dtype=np.float64).tobytes() for k, a in acts.items()}
-    best = {bytes_of[k]: r for k, r in start.items()}
-    keys = [k for k in acts if k in first]
-    back = setup.solve(design, [dataclasses.replace(unique[bytes_of[k]][1], name=f"rest<-{k[0]}[{k[1]}]")
+    best = {key_of[k]: r for k, r in start.items()}
+    keys = [k for k in key_of if k in first]
+    back = setup.solve(design, [dataclasses.replace(unique[key_of[k]][1], name=f"rest<-{k[0]}[{k[1]}]")
                                 for k in keys], warm_start=[first[k] for k in keys], options=setup.solver)
     for k, r in zip(keys, back):
-        b = best[bytes_of[k]]
+        b = best[key_of[k]]
         if r.converged and (not b.converged or r.total_energy < b.total_energy * (1 - 1e-9)):
-            best[bytes_of[k]] = r
+            best[key_of[k]] = r
     out = []
-    for (m, s) in acts:
-        r, st = best[bytes_of[(m, s)]], unique[bytes_of[(m, s)]][1]
+    for (m, s), b in key_of.items():
+        r, st = best[b], unique[b][1]
         tension = clutch_tensions(model, design, st, r.x, setup.solver)
         out.append(PathFrame(m, s, 0.0, float(r.total_energy), tuple(float(v) for v in tension), bool(r.converged)))
     return out
@@ -306,12 +307,12 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
     by_motion = {m: [(label, t) for label, mm, t in index if mm == m] for m in motions}
     if report is not None:
         report("rest pose (t = 0)")
-    rest = _rest_starts(evaluator, design, motions, sim_motions)
+    rest = _rest_starts(evaluator, design, _rest_states(setup, motions, sim_motions))
     results: dict[tuple[str, str, int], object] = {}
 
-    def before(m: str, s: str, i: int) -> list:  # the equilibria the frame i is predicted from
+    def before(m: str, s: str, i: int) -> list:  # the (up to two) equilibria frame i is predicted from
         past = _from_rest(rest[(m, s)], sim_motions) + [(results[(m, s, j)].x, sim_motions[by_motion[m][j][0]])
-                                                         for j in range(i)]
+                                                         for j in range(max(i - 2, 0), i)]
         return past[-2:]
 
     started = time.perf_counter()
