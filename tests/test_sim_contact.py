@@ -168,3 +168,39 @@ def test_points_moved_onto_the_contact_surface(body):
     _, a = _args(body, p)
     f0, _, _ = imls(torch.tensor(p), *a, order=0)
     assert np.allclose(np.linalg.norm(move, axis=1), np.abs(f0.numpy()), rtol=0.05, atol=2e-5)
+
+
+def test_points_no_support_covers_get_the_same_bits_whatever_the_lists_held(body):
+    """A point deeper inside than any support reaches falls back to the plane of its
+    nearest body vertex: the vertex nearest to it now, not at its list's last query (which
+    depends on the solves before). Stale lists and fresh ones then give the same bits; with
+    the stale nearest vertex they would not (checked, so the test can fail)."""
+    from kgarment.sim.contact import covered, exact_fallback
+
+    rng = np.random.default_rng(3)
+    T = torch.tensor
+    bodyt = (T(body.vertices), T(body.normals), T(body.support))
+    p0 = _points(400, np.full(400, 0.6 * R), seed=8)  # 40 mm deep: no support reaches
+    c0 = update_neighbors(body, p0)
+    step = rng.normal(size=p0.shape)
+    p = p0 + 0.5 * c0.threshold[:, None] * step / np.linalg.norm(step, axis=1, keepdims=True)  # within the lists' thresholds
+    stale = update_neighbors(body, p, c0)
+    assert stale is c0  # nothing re-queried: the lists (and nearest vertices) of p0
+    fresh = update_neighbors(body, p)
+    moved = stale.nearest != fresh.nearest
+    assert moved.sum() > 10  # the nearest vertex changed for these points
+    k = torch.full((len(p),), 1e4, dtype=torch.float64)
+    pt = T(p)
+    out, raw = [], []
+    for c in (fresh, stale):
+        lists = (T(c.index), T(c.valid, dtype=torch.float64), T(c.nearest))
+        pre = gather(*bodyt, *lists)
+        assert not bool(covered(pt, pre).any())
+        raw.append(contact(pt, k, *bodyt, *lists, order=2, pre=pre))
+        nearest = exact_fallback(body, pt, pre, lists[2], *bodyt[:2])
+        out.append(contact(pt, k, *bodyt, *lists[:2], nearest, order=2, pre=pre))
+    assert not torch.equal(raw[0][0], raw[1][0])  # the stale plane: other energies
+    assert torch.equal(out[0][0], raw[0][0])  # fresh lists are already exact
+    for a, b in zip(*out):
+        assert torch.equal(a, b)
+    assert float(out[0][0].sum()) > 0

@@ -335,6 +335,42 @@ def imls_value(p: torch.Tensor, pre: Candidates) -> torch.Tensor:
     return torch.where(covered, f_imls, (n0 * (p - v0)).sum(1))
 
 
+def covered(p: torch.Tensor, pre: Candidates) -> torch.Tensor:
+    """(P,) bool: whether some listed vertex's support covers each point (where not,
+    :func:`imls_value` falls back to the plane of ``pre``'s nearest vertex)."""
+    V, _, hinv, vv, _, valid, _, _ = pre
+    if kernels.applies(p):
+        return torch.from_numpy(kernels.imls_covered(*kernels.arrays(p, V, hinv, vv, valid)))
+    d2 = (p * p).sum(1)[:, None] - 2.0 * torch.einsum("pkc,pc->pk", V, p) + vv
+    q = torch.clamp(1.0 - d2 * hinv, min=0.0) * valid
+    q2 = q * q
+    return (q2 * q2).sum(1) > 0
+
+
+def exact_fallback(body: ImplicitBody, p: torch.Tensor, pre: Candidates, nearest: torch.Tensor,
+                   bv: torch.Tensor, bn: torch.Tensor) -> torch.Tensor:
+    """``nearest`` (P,) with the body vertex nearest to ``p`` (P, 3) *now* in every row no
+    support covers, and ``pre``'s fallback planes (v0, n0) of those rows made to match (in
+    place).  A neighbour list keeps the nearest vertex of its last query, and which query
+    that was depends on the solves this process ran before (a worker's earlier states,
+    NeighborStore): with it the energy of a point deep inside the body depended on that
+    history, and two runs of one design could part (measured: the main job's runs parting
+    at iteration 31 or 92 with a different Newton iteration count in one state).  With
+    this the energy is a function of the positions alone.  Returns ``nearest`` itself
+    when every point is covered (the usual case), else a corrected copy."""
+    cov = covered(p, pre)
+    if bool(cov.all()):
+        return nearest
+    rows = torch.nonzero(~cov).squeeze(1)
+    _, ids = body.tree.query(p[rows].detach().cpu().numpy(), k=1)
+    ids = torch.as_tensor(np.asarray(ids, dtype=np.int64).reshape(-1), device=nearest.device)
+    out = nearest.clone()
+    out[rows] = ids
+    pre.v0[rows] = bv[ids]
+    pre.n0[rows] = bn[ids]
+    return out
+
+
 def contact(p: torch.Tensor, k: torch.Tensor, bv, bn, bh, index, valid, nearest,
             order: int = 0, exact_hessian: bool = False, pre=None):
     """Penalty ``k min(f, 0)^2`` per point.

@@ -17,7 +17,14 @@ import numpy as np
 import torch
 
 from kgarment.sim.cable import LOCKED_CAP, SPACING, Cable, cable_energy
-from kgarment.sim.contact import NEIGHBORS, contact, gather, imls_fast, update_neighbors
+from kgarment.sim.contact import (
+    NEIGHBORS,
+    contact,
+    exact_fallback,
+    gather,
+    imls_fast,
+    update_neighbors,
+)
 from kgarment.sim.friction import friction, normal_forces
 from kgarment.sim.materials import (
     check_design,
@@ -225,7 +232,9 @@ class StateProblem:
             self._pre = gather(self.bv, self.bn, self.bh, *self._cache_t, rows=rows, into=self._pre)
             self._cache_obj = c
             NEIGHBORS.put(self._store_key, c)
-        return (self.bv, self.bn, self.bh) + self._cache_t
+        index, valid, nearest = self._cache_t
+        nearest = exact_fallback(self.body, x, self._pre, nearest, self.bv, self.bn)
+        return self.bv, self.bn, self.bh, index, valid, nearest
 
     def _check(self, value: torch.Tensor, term: str, what: str = "energy") -> None:
         if not bool(torch.isfinite(value).all()):

@@ -257,6 +257,28 @@ def imls_order2(p, bv, bn, bh, index, valid, nearest, order):
 
 
 @_njit
+def imls_covered(p, V, hinv, vv, valid):
+    """(P,) bool: whether some candidate's support covers each point, decided as in
+    :func:`imls_value` (contact.covered)."""
+    P, K = hinv.shape
+    out = np.zeros(P, np.bool_)
+    for i in range(P):
+        pp = p[i, 0] * p[i, 0] + p[i, 1] * p[i, 1] + p[i, 2] * p[i, 2]
+        D = 0.0
+        for k in range(K):
+            if valid[i, k] == 0:
+                continue
+            d2 = pp - 2.0 * (V[i, k, 0] * p[i, 0] + V[i, k, 1] * p[i, 1] + V[i, k, 2] * p[i, 2]) + vv[i, k]
+            q = 1.0 - d2 * hinv[i, k]
+            if q <= 0.0:
+                continue
+            q2 = q * q
+            D += q2 * q2 * valid[i, k]
+        out[i] = D > 0.0
+    return out
+
+
+@_njit
 def imls_value(p, V, N, hinv, vv, nv, valid, v0, n0):
     """IMLS value f (P,) from contact.gather's per-candidate arrays (contact.imls_value)."""
     P, K = hinv.shape
