@@ -172,10 +172,11 @@ def test_points_moved_onto_the_contact_surface(body):
 
 def test_points_no_support_covers_get_the_same_bits_whatever_the_lists_held(body):
     """A point deeper inside than any support reaches falls back to the plane of its
-    nearest body vertex: the vertex nearest to it now, not at its list's last query (which
-    depends on the solves before). Stale lists and fresh ones then give the same bits; with
-    the stale nearest vertex they would not (checked, so the test can fail)."""
-    from kgarment.sim.contact import covered, exact_fallback
+    nearest body vertex: given the body's tree, the vertex nearest to it now, not at its
+    list's last query (which depends on the solves before). Stale lists and fresh ones then
+    give the same bits; with the stale nearest vertex they do not (checked, so the test
+    can fail)."""
+    from kgarment.sim.contact import imls_fast, imls_value
 
     rng = np.random.default_rng(3)
     T = torch.tensor
@@ -187,20 +188,32 @@ def test_points_no_support_covers_get_the_same_bits_whatever_the_lists_held(body
     stale = update_neighbors(body, p, c0)
     assert stale is c0  # nothing re-queried: the lists (and nearest vertices) of p0
     fresh = update_neighbors(body, p)
-    moved = stale.nearest != fresh.nearest
-    assert moved.sum() > 10  # the nearest vertex changed for these points
+    assert (stale.nearest != fresh.nearest).sum() > 10  # the nearest vertex changed for these points
     k = torch.full((len(p),), 1e4, dtype=torch.float64)
     pt = T(p)
-    out, raw = [], []
+    out, raw, lin = [], [], []
     for c in (fresh, stale):
         lists = (T(c.index), T(c.valid, dtype=torch.float64), T(c.nearest))
         pre = gather(*bodyt, *lists)
-        assert not bool(covered(pt, pre).any())
+        assert not bool(imls_value(pt, pre, with_covered=True)[1].any())
         raw.append(contact(pt, k, *bodyt, *lists, order=2, pre=pre))
-        nearest = exact_fallback(body, pt, pre, lists[2], *bodyt[:2])
-        out.append(contact(pt, k, *bodyt, *lists[:2], nearest, order=2, pre=pre))
+        out.append(contact(pt, k, *bodyt, *lists, order=2, pre=pre, tree=body.tree))
+        lin.append(imls_fast(pt, *bodyt, *lists, order=2, tree=body.tree))
     assert not torch.equal(raw[0][0], raw[1][0])  # the stale plane: other energies
-    assert torch.equal(out[0][0], raw[0][0])  # fresh lists are already exact
+    for a, b in zip(out[0], raw[0]):  # fresh lists are already exact
+        assert torch.equal(a, b)
     for a, b in zip(*out):
         assert torch.equal(a, b)
+    for a, b in zip(*lin):
+        assert torch.equal(a, b)
     assert float(out[0][0].sum()) > 0
+    from kgarment.sim import kernels
+
+    kernels.ENABLED = False  # the torch path (GPU, no numba) falls back the same way
+    try:
+        lists = (T(stale.index), T(stale.valid, dtype=torch.float64), T(stale.nearest))
+        slow = imls_fast(pt, *bodyt, *lists, order=2, tree=body.tree)
+    finally:
+        kernels.ENABLED = True
+    for a, b in zip(slow, lin[0]):
+        assert torch.allclose(a, b, rtol=1e-12, atol=1e-15)

@@ -276,12 +276,47 @@ def imls(p: torch.Tensor, bv: torch.Tensor, bn: torch.Tensor, bh: torch.Tensor,
     return f, gf, hf
 
 
-def imls_fast(p: torch.Tensor, bv, bn, bh, index, valid, nearest, order: int = 0):
-    """:func:`imls` through the compiled CPU kernel where it applies (``kernels``)."""
+def _uncovered(p: torch.Tensor, bh, index, valid, bv) -> torch.Tensor:
+    """(P,) bool: no listed vertex's support covers the point (as :func:`imls` decides)."""
+    u = p[:, None, :] - bv[index]
+    q = torch.clamp(1.0 - (u * u).sum(-1) / bh[index], min=0.0) * valid
+    return ~((q**4).sum(1) > 0)
+
+
+def nearest_now(tree: cKDTree, p: torch.Tensor) -> torch.Tensor:
+    """(r,) long: the body vertex nearest to each of the points ``p`` (r, 3)."""
+    _, ids = tree.query(p.detach().cpu().numpy(), k=1)
+    return torch.as_tensor(np.asarray(ids, dtype=np.int64).reshape(-1), device=p.device)
+
+
+def imls_fast(p: torch.Tensor, bv, bn, bh, index, valid, nearest, order: int = 0, tree: cKDTree | None = None):
+    """:func:`imls` through the compiled CPU kernel where it applies (``kernels``).
+
+    With the body's ``tree`` a point that no listed support covers falls back to the plane
+    of the body vertex nearest to it now rather than ``nearest`` (its list's, from where
+    the list was last queried: :func:`contact`)."""
     if order == 0 or not kernels.applies(p):
-        return imls(p, bv, bn, bh, index, valid, nearest, order=order)
-    f, gf, hf = kernels.imls_order2(*kernels.arrays(p, bv, bn, bh, index, valid, nearest), order)
-    return torch.from_numpy(f), torch.from_numpy(gf), torch.from_numpy(hf) if order == 2 else None
+        f, gf, hf = imls(p, bv, bn, bh, index, valid, nearest, order=order)
+        out = (f, gf, hf)
+        if tree is None:
+            return out
+        fall = _uncovered(p, bh, index, valid, bv)
+    else:
+        f, gf, hf, cov = kernels.imls_order2(*kernels.arrays(p, bv, bn, bh, index, valid, nearest), order)
+        out = (torch.from_numpy(f), torch.from_numpy(gf), torch.from_numpy(hf) if order == 2 else None)
+        if tree is None:
+            return out
+        fall = torch.from_numpy(~cov)
+    if bool(fall.any()):
+        rows = torch.nonzero(fall).squeeze(1)
+        ids = nearest_now(tree, p[rows])
+        f, gf, hf = out
+        f[rows] = (bn[ids] * (p[rows] - bv[ids])).sum(1)
+        if gf is not None:
+            gf[rows] = bn[ids]
+        if hf is not None:
+            hf[rows] = 0.0
+    return out
 
 
 class Candidates(NamedTuple):
@@ -318,11 +353,14 @@ def gather(bv, bn, bh, index, valid, nearest, rows=None, into: Candidates | None
     return into
 
 
-def imls_value(p: torch.Tensor, pre: Candidates) -> torch.Tensor:
+def imls_value(p: torch.Tensor, pre: Candidates, with_covered: bool = False):
     """f (P,) from :func:`gather`'s quantities, without forming the (P, K, 3) offsets:
-    ``|p - v|^2 = |p|^2 - 2 p.v + |v|^2`` and ``n.(p - v) = n.p - n.v``."""
+    ``|p - v|^2 = |p|^2 - 2 p.v + |v|^2`` and ``n.(p - v) = n.p - n.v``.  With
+    ``with_covered`` also (P,) bool: whether some support covers the point (where not,
+    f is the plane of ``pre``'s nearest vertex)."""
     if kernels.applies(p):
-        return torch.from_numpy(kernels.imls_value(*kernels.arrays(p, *pre)))
+        f, cov = kernels.imls_value(*kernels.arrays(p, *pre))
+        return (torch.from_numpy(f), torch.from_numpy(cov)) if with_covered else torch.from_numpy(f)
     V, N, hinv, vv, nv, valid, v0, n0 = pre
     d2 = (p * p).sum(1)[:, None] - 2.0 * torch.einsum("pkc,pc->pk", V, p) + vv
     q = torch.clamp(1.0 - d2 * hinv, min=0.0) * valid
@@ -332,57 +370,36 @@ def imls_value(p: torch.Tensor, pre: Candidates) -> torch.Tensor:
     D = w.sum(1)
     covered = D > 0
     f_imls = (w * phi).sum(1) / torch.where(covered, D, torch.ones_like(D))
-    return torch.where(covered, f_imls, (n0 * (p - v0)).sum(1))
-
-
-def covered(p: torch.Tensor, pre: Candidates) -> torch.Tensor:
-    """(P,) bool: whether some listed vertex's support covers each point (where not,
-    :func:`imls_value` falls back to the plane of ``pre``'s nearest vertex)."""
-    V, _, hinv, vv, _, valid, _, _ = pre
-    if kernels.applies(p):
-        return torch.from_numpy(kernels.imls_covered(*kernels.arrays(p, V, hinv, vv, valid)))
-    d2 = (p * p).sum(1)[:, None] - 2.0 * torch.einsum("pkc,pc->pk", V, p) + vv
-    q = torch.clamp(1.0 - d2 * hinv, min=0.0) * valid
-    q2 = q * q
-    return (q2 * q2).sum(1) > 0
-
-
-def exact_fallback(body: ImplicitBody, p: torch.Tensor, pre: Candidates, nearest: torch.Tensor,
-                   bv: torch.Tensor, bn: torch.Tensor) -> torch.Tensor:
-    """``nearest`` (P,) with the body vertex nearest to ``p`` (P, 3) *now* in every row no
-    support covers, and ``pre``'s fallback planes (v0, n0) of those rows made to match (in
-    place).  A neighbour list keeps the nearest vertex of its last query, and which query
-    that was depends on the solves this process ran before (a worker's earlier states,
-    NeighborStore): with it the energy of a point deep inside the body depended on that
-    history, and two runs of one design could part (measured: the main job's runs parting
-    at iteration 31 or 92 with a different Newton iteration count in one state).  With
-    this the energy is a function of the positions alone.  Returns ``nearest`` itself
-    when every point is covered (the usual case), else a corrected copy."""
-    cov = covered(p, pre)
-    if bool(cov.all()):
-        return nearest
-    rows = torch.nonzero(~cov).squeeze(1)
-    _, ids = body.tree.query(p[rows].detach().cpu().numpy(), k=1)
-    ids = torch.as_tensor(np.asarray(ids, dtype=np.int64).reshape(-1), device=nearest.device)
-    out = nearest.clone()
-    out[rows] = ids
-    pre.v0[rows] = bv[ids]
-    pre.n0[rows] = bn[ids]
-    return out
+    f = torch.where(covered, f_imls, (n0 * (p - v0)).sum(1))
+    return (f, covered) if with_covered else f
 
 
 def contact(p: torch.Tensor, k: torch.Tensor, bv, bn, bh, index, valid, nearest,
-            order: int = 0, exact_hessian: bool = False, pre=None):
+            order: int = 0, exact_hessian: bool = False, pre=None, tree: cKDTree | None = None):
     """Penalty ``k min(f, 0)^2`` per point.
 
     p : (P, 3); k : (P,) N/m; ``pre`` : optional :func:`gather` output for these lists.
     Returns energy (P,) J, gradient (P, 3) N or None and Hessian (P, 3, 3) N/m or None
     (Gauss-Newton unless ``exact_hessian``).  Derivatives are evaluated only for
     penetrating points.
+
+    ``tree`` (the body's :attr:`ImplicitBody.tree`): a point that no support covers takes
+    the plane of the body vertex nearest to it now.  Without it, the plane of ``nearest``:
+    the vertex nearest to where the point's list was last queried, which a list keeps
+    until the point moves past its threshold.  Which query that was depends on the solves
+    a process ran before (NeighborStore: a worker's earlier states), so the energy of such
+    a point depended on that history and two runs of one design could part (measured: the
+    main job's runs parting at iteration 31 or 92, one state taking other Newton steps).
+    The solver passes the tree: its energies are then functions of the positions alone.
     """
     if pre is None:
         pre = gather(bv, bn, bh, index, valid, nearest)
-    f = imls_value(p, pre)
+    f, cov = imls_value(p, pre, with_covered=True)
+    if tree is not None and not bool(cov.all()):
+        rows = torch.nonzero(~cov).squeeze(1)
+        ids = nearest_now(tree, p[rows])
+        f = f.clone()
+        f[rows] = (bn[ids] * (p[rows] - bv[ids])).sum(1)
     neg = torch.clamp(f, max=0.0)
     e = k * neg * neg
     if order == 0:
@@ -393,7 +410,7 @@ def contact(p: torch.Tensor, k: torch.Tensor, bv, bn, bh, index, valid, nearest,
     if act.numel() == 0:
         return e, grad, hess
     need = 2 if (order >= 2 and exact_hessian) else 1
-    fa, ga, ha = imls_fast(p[act], bv, bn, bh, index[act], valid[act], nearest[act], order=need)
+    fa, ga, ha = imls_fast(p[act], bv, bn, bh, index[act], valid[act], nearest[act], order=need, tree=tree)
     ka = k[act]
     grad[act] = (2.0 * ka * fa)[:, None] * ga
     if order >= 2:
@@ -427,7 +444,7 @@ def onto_surface(body: ImplicitBody, points: np.ndarray, steps: int = SURFACE_ST
         cache = update_neighbors(body, p, cache)
         f, gf, _ = imls_fast(torch.from_numpy(p), bv, bn, bh, torch.as_tensor(cache.index, dtype=torch.long),
                              torch.as_tensor(cache.valid, dtype=torch.float64),
-                             torch.as_tensor(cache.nearest, dtype=torch.long), order=1)
+                             torch.as_tensor(cache.nearest, dtype=torch.long), order=1, tree=body.tree)
         f, gf = f.numpy(), gf.numpy()
         g2 = np.einsum("ij,ij->i", gf, gf)
         step = -np.where(g2 > 0.25, f / np.maximum(g2, 1e-300), 0.0)[:, None] * gf

@@ -20,7 +20,6 @@ from kgarment.sim.cable import LOCKED_CAP, SPACING, Cable, cable_energy
 from kgarment.sim.contact import (
     NEIGHBORS,
     contact,
-    exact_fallback,
     gather,
     imls_fast,
     update_neighbors,
@@ -232,9 +231,7 @@ class StateProblem:
             self._pre = gather(self.bv, self.bn, self.bh, *self._cache_t, rows=rows, into=self._pre)
             self._cache_obj = c
             NEIGHBORS.put(self._store_key, c)
-        index, valid, nearest = self._cache_t
-        nearest = exact_fallback(self.body, x, self._pre, nearest, self.bv, self.bn)
-        return self.bv, self.bn, self.bh, index, valid, nearest
+        return (self.bv, self.bn, self.bh) + self._cache_t
 
     def _check(self, value: torch.Tensor, term: str, what: str = "energy") -> None:
         if not bool(torch.isfinite(value).all()):
@@ -250,7 +247,8 @@ class StateProblem:
         e_m, g_m, h_m = self._membrane(x, order, proj)
         e_k, g_k, h_k = self._cable_terms(x, order, proj == "none")
         e_c, g_c, h_c = contact(x, self.k_contact, *self._contact_args(x), order=order,
-                                exact_hessian=exact or self.exact_contact_hessian, pre=self._pre)
+                                exact_hessian=exact or self.exact_contact_hessian, pre=self._pre,
+                                tree=self.body.tree)
         e_s, g_s = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=min(order, 1))
         e_f, g_f, h_f = self._friction(x, order)
         total = e_m.sum() + e_c.sum() + e_s.sum() + e_f.sum() + sum(e_k)
@@ -359,7 +357,8 @@ class StateProblem:
         and per-element membrane energy (M,) J at x."""
         e_m, _, _ = self._membrane(x, 0, self.projection)
         e_m = self._with_cables(e_m, self._cable_terms(x, 0)[0])
-        e_c, _, _ = contact(x, self.k_contact, *self._contact_args(x), order=0, pre=self._pre)
+        e_c, _, _ = contact(x, self.k_contact, *self._contact_args(x), order=0, pre=self._pre,
+                            tree=self.body.tree)
         e_s, _ = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=0)
         e_f, _, _ = self._friction(x, 0)
         split = self._split_terms(e_m, e_c, e_s, e_f)
@@ -370,7 +369,7 @@ class StateProblem:
     def contact_linearization(self, x: torch.Tensor):
         """IMLS value f (N,) and gradient (N, 3) at every vertex (numpy)."""
         args = self._contact_args(x)
-        f, gf, _ = imls_fast(x, *args, order=1)
+        f, gf, _ = imls_fast(x, *args, order=1, tree=self.body.tree)
         return f.cpu().numpy(), gf.cpu().numpy()
 
     def add_contact_stiffness(self, data: np.ndarray, vertices: np.ndarray, gradf: np.ndarray) -> np.ndarray:

@@ -184,9 +184,11 @@ def membrane_order2(x, tri, G, weight, mu, lam, relaxed, project):
 
 @_njit
 def imls_order2(p, bv, bn, bh, index, valid, nearest, order):
-    """IMLS value f (P,), gradient (P, 3) and (order 2) Hessian (P, 3, 3) (contact.imls)."""
+    """IMLS value f (P,), gradient (P, 3), (order 2) Hessian (P, 3, 3) and whether some
+    support covers each point (P,) bool (contact.imls)."""
     P, K = index.shape
     f = np.empty(P)
+    cov = np.zeros(P, np.bool_)
     gf = np.zeros((P, 3))
     hf = np.zeros((P, 3, 3))
     u = np.empty(3)
@@ -237,6 +239,7 @@ def imls_order2(p, bv, bn, bh, index, valid, nearest, order):
                     hD[c, d] += d2w
                     hN[c, d] += phi * d2w + a * u[c] * bn[v, d] + bn[v, c] * a * u[d]
         if D > 0.0:
+            cov[i] = True
             fi = Nsum / D
             f[i] = fi
             if order >= 1:
@@ -253,36 +256,16 @@ def imls_order2(p, bv, bn, bh, index, valid, nearest, order):
                 s += bn[v, c] * (p[i, c] - bv[v, c])
                 gf[i, c] = bn[v, c]
             f[i] = s
-    return f, gf, hf
-
-
-@_njit
-def imls_covered(p, V, hinv, vv, valid):
-    """(P,) bool: whether some candidate's support covers each point, decided as in
-    :func:`imls_value` (contact.covered)."""
-    P, K = hinv.shape
-    out = np.zeros(P, np.bool_)
-    for i in range(P):
-        pp = p[i, 0] * p[i, 0] + p[i, 1] * p[i, 1] + p[i, 2] * p[i, 2]
-        D = 0.0
-        for k in range(K):
-            if valid[i, k] == 0:
-                continue
-            d2 = pp - 2.0 * (V[i, k, 0] * p[i, 0] + V[i, k, 1] * p[i, 1] + V[i, k, 2] * p[i, 2]) + vv[i, k]
-            q = 1.0 - d2 * hinv[i, k]
-            if q <= 0.0:
-                continue
-            q2 = q * q
-            D += q2 * q2 * valid[i, k]
-        out[i] = D > 0.0
-    return out
+    return f, gf, hf, cov
 
 
 @_njit
 def imls_value(p, V, N, hinv, vv, nv, valid, v0, n0):
-    """IMLS value f (P,) from contact.gather's per-candidate arrays (contact.imls_value)."""
+    """IMLS value f (P,) from contact.gather's per-candidate arrays, and whether some
+    support covers each point (P,) bool (contact.imls_value)."""
     P, K = hinv.shape
     f = np.empty(P)
+    cov = np.zeros(P, np.bool_)
     for i in range(P):
         pp = p[i, 0] * p[i, 0] + p[i, 1] * p[i, 1] + p[i, 2] * p[i, 2]
         D = 0.0
@@ -299,8 +282,9 @@ def imls_value(p, V, N, hinv, vv, nv, valid, v0, n0):
             D += w
             Nsum += w * (N[i, k, 0] * p[i, 0] + N[i, k, 1] * p[i, 1] + N[i, k, 2] * p[i, 2] - nv[i, k])
         if D > 0.0:
+            cov[i] = True
             f[i] = Nsum / D
         else:
             f[i] = (n0[i, 0] * (p[i, 0] - v0[i, 0]) + n0[i, 1] * (p[i, 1] - v0[i, 1])
                     + n0[i, 2] * (p[i, 2] - v0[i, 2]))
-    return f
+    return f, cov
