@@ -207,8 +207,10 @@ class NeighborStore:
     that moved.  Measured on the main job (subdivision 0): a full query of a state's 1,852
     points took 23 ms, 40% of the neighbour work of a design iteration.  The lists only
     decide which body vertices are summed, and each row is in canonical order, so energies
-    do not depend on what the store held (a point no support covers falls back to the
-    plane of its nearest vertex at its last query: deep inside the body only).
+    do not depend on what the store held (a point no support covers -- lifted off by more
+    than a support radius, or deep inside -- takes the plane of the body vertex nearest to
+    it now where :func:`contact` is given the body's tree, as the solver does; a list's own
+    nearest vertex is that of its last query).
 
     Keyed by (name, number of points, body): a wrong key only costs a full query, since a
     list is used only where it is exact.  At most ``max_entries`` entries and ``max_bytes``

@@ -17,13 +17,7 @@ import numpy as np
 import torch
 
 from kgarment.sim.cable import LOCKED_CAP, SPACING, Cable, cable_energy
-from kgarment.sim.contact import (
-    NEIGHBORS,
-    contact,
-    gather,
-    imls_fast,
-    update_neighbors,
-)
+from kgarment.sim.contact import NEIGHBORS, contact, gather, imls_fast, update_neighbors
 from kgarment.sim.friction import friction, normal_forces
 from kgarment.sim.materials import (
     check_design,
