@@ -74,6 +74,27 @@ def test_resume_is_bit_identical(tmp_path):
     np.testing.assert_array_equal(whole.design, resumed.design)
 
 
+def test_checkpoint_metrics_round_trip_and_old_checkpoints_still_load(tmp_path):
+    """The checkpoint keeps the metrics as UTF-8 bytes (uncompressed: it is rewritten every
+    iteration), metrics.json holds the same rows; a checkpoint written before, with the
+    metrics as a numpy string, loads to the same state."""
+    import json
+
+    setup, _ = _sheet_setup(max_iterations=3)
+    st = run_loop(setup, initial_state(setup))
+    save_checkpoint(tmp_path, st)
+    back = load_checkpoint(tmp_path)
+    assert back.metrics == st.metrics and back.iteration == st.iteration
+    assert json.loads((tmp_path / "metrics.json").read_text()) == list(st.metrics)
+    z = dict(np.load(tmp_path / "checkpoint.npz"))
+    assert z["metrics"].dtype == np.uint8
+    z["metrics"] = np.array(json.dumps(st.metrics))  # the earlier format
+    np.savez_compressed(tmp_path / "checkpoint.npz", **z)
+    old = load_checkpoint(tmp_path)
+    assert old.metrics == st.metrics
+    np.testing.assert_array_equal(old.design, st.design)
+
+
 def test_evolution_tolerance_only_while_the_area_changes():
     """Iterations 1 .. A* solve to the evolution tolerance, iteration 0 (the reference of rho)
     and the iterations at A* (which decide convergence) to the design tolerance; the coarse

@@ -76,10 +76,12 @@ def json_text(obj, indent: int | None = 1) -> str:
     return json.dumps(finite_json(obj), indent=indent, allow_nan=False)
 
 
-def atomic_save_npz(path, **arrays) -> Path:
-    """Write a compressed ``.npz`` of ``arrays`` atomically."""
+def atomic_save_npz(path, *, compressed: bool = True, **arrays) -> Path:
+    """Write an ``.npz`` of ``arrays`` atomically, compressed unless ``compressed=False``
+    (a file rewritten often: deflate took 80 ms of a design run's 1.5 MB checkpoint, the
+    uncompressed write 7 ms)."""
     buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
+    (np.savez_compressed if compressed else np.savez)(buf, **arrays)
     return atomic_write_bytes(path, buf.getvalue())
 
 

@@ -166,7 +166,7 @@ def save_checkpoint(run: Path, st: LoopState) -> None:
         ref_keys=np.array(["|".join(k) for k in ref_keys], dtype=str),
         ref_values=np.array([st.reference[k] for k in ref_keys], dtype=np.float64),
         ref_clutch=np.array([st.reference_stored[k].clutch_energy for k in ref_keys], dtype=np.float64),
-        metrics=np.array(json.dumps(st.metrics)), done=np.array(st.done),
+        metrics=np.frombuffer(metrics_json(st.metrics).encode(), np.uint8), done=np.array(st.done),
         n_faces=np.array(len(st.design)), sim_model=np.array(SIM_MODEL),
         designs=np.array([np.packbits(d) for d in st.designs]) if st.designs else np.zeros((0, 0), np.uint8),
     )
@@ -179,9 +179,9 @@ def save_checkpoint(run: Path, st: LoopState) -> None:
         arrays[f"warm_{i}"] = st.warm[n]
     for i, k in enumerate(ref_keys):
         arrays[f"ref_faces_{i}"] = st.reference_stored[k].face_energy
-    atomic_save_npz(run / "checkpoint.npz", **arrays)
+    atomic_save_npz(run / "checkpoint.npz", compressed=False, **arrays)  # rewritten every iteration
     atomic_save_npz(run / "designs.npz", designs=arrays["designs"], n_faces=arrays["n_faces"])
-    write_metrics(run, st.metrics)
+    write_metrics(run, st.metrics, text=arrays["metrics"].tobytes().decode())
 
 
 CHECKPOINT_KEYS = ("iteration", "design", "target", "has_alpha", "alpha_prev", "warm_names", "objectives", "ref_keys",
@@ -233,11 +233,22 @@ def _state_from(z: dict) -> LoopState:
         reference={k: float(v) for k, v in zip(keys, z["ref_values"])},
         reference_stored={k: Stored(z[f"ref_faces_{i}"].copy(), float(c))
                           for i, (k, c) in enumerate(zip(keys, z["ref_clutch"]))},
-        designs=tuple(designs), metrics=tuple(json.loads(str(z["metrics"]))), done=bool(z["done"]),
+        designs=tuple(designs), metrics=tuple(json.loads(_text(z["metrics"]))), done=bool(z["done"]),
         guarded=z["guarded"].astype(bool) if "guarded" in z else None,
         accepted_alpha={str(z[f"accepted_name_{i}"]): z[f"accepted_{i}"].copy()
                         for i in range(len(z)) if f"accepted_{i}" in z} or None,
     )
+
+
+def _text(a: np.ndarray) -> str:
+    """A checkpoint's metrics: UTF-8 bytes (uint8), or a string (checkpoints before 2026-11-27)."""
+    return a.tobytes().decode() if a.dtype == np.uint8 else str(a)
+
+
+def metrics_json(rows) -> str:
+    """The metrics rows as JSON, one row per line (``metrics.json``; the checkpoint keeps
+    the same text)."""
+    return "[\n" + ",\n".join(json.dumps(r) for r in rows) + "\n]\n"
 
 
 def load_design_history(run) -> np.ndarray:
@@ -253,7 +264,9 @@ def load_design_history(run) -> np.ndarray:
     return hist
 
 
-def write_metrics(run: Path, rows) -> None:
+def write_metrics(run: Path, rows, text: str | None = None) -> None:
+    """``metrics.csv`` and ``metrics.json`` of ``rows`` (``text``: their
+    :func:`metrics_json`, where already made)."""
     if not rows:
         return
     cols = list(dict.fromkeys(k for r in rows for k in r))
@@ -262,7 +275,7 @@ def write_metrics(run: Path, rows) -> None:
     w.writeheader()
     w.writerows(list(rows))
     atomic_write_text(run / "metrics.csv", buf.getvalue())
-    atomic_write_text(run / "metrics.json", json.dumps(list(rows), indent=1))
+    atomic_write_text(run / "metrics.json", metrics_json(rows) if text is None else text)
 
 
 def progress_plot(run: Path, rows: list[dict]) -> Path:
