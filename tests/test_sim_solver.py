@@ -215,6 +215,12 @@ def test_non_convergence_is_reported_by_name(caplog):
     with pytest.raises(ConvergenceError) as err:
         solve_states(model, d, [state], options=SolverOptions(max_iter=1, on_fail="raise"))
     assert err.value.states == ["tight"]
+    caplog.clear()  # "info": flagged and logged, but no warning (a caller that solves it again another way)
+    with caplog.at_level(logging.INFO, logger="kgarment.sim"):
+        r = solve_states(model, d, [state], options=SolverOptions(max_iter=1, rescue_shifts=0, on_fail="info"))[0]
+    assert not r.converged
+    said = [rec for rec in caplog.records if "did not converge" in rec.getMessage()]
+    assert said and all(rec.levelno == logging.INFO for rec in said)
 
 
 def test_non_finite_energy_raises_naming_state_and_term():

@@ -46,6 +46,7 @@ when that does not converge.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -57,6 +58,8 @@ from kgarment.constants import LOAD_TOL, LOADED_SHARE, MIN_GAIN
 from kgarment.io import save_figure
 from kgarment.sim import StateResult, clutch_tensions, prepare_state
 from kgarment.sim.slip import slides
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -171,18 +174,21 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     "off")]``), whichever has the lower energy under the state's activation
     (:func:`nearer_start`), and is solved to :data:`LOAD_TOL`; states that do not converge
     so go through the evaluator's two starts.  That first solve has no rescue (a second
-    solve from the same start with larger shifts, ``SolverOptions.rescue_shifts``): the two
-    starts follow anyway.  Measured on the main job's design (2026-11-27): its one
+    solve from the same start with larger shifts, ``SolverOptions.rescue_shifts``) and
+    does not warn about the states it leaves unconverged: the two starts follow anyway
+    (and warn where they fail too).  Measured on the main job's design (2026-11-27): its one
     unconverged load state (bend forward, the upper back clutch alone) wandered for 200
     iterations and its rescue for 200 more (15 s) before the two starts converged it."""
     setup = evaluator.setup
-    opts = dataclasses.replace(setup.solver, tol=max(setup.solver.tol, LOAD_TOL), rescue_shifts=0)
+    opts = dataclasses.replace(setup.solver, tol=max(setup.solver.tol, LOAD_TOL), rescue_shifts=0, on_fail="info")
     starts = [nearer_start(setup, design, st, [known[(key[0], "on")].x, known[(key[0], "off")].x])
               for key, st in keyed]
     solved = setup.solve(design, [st for _, st in keyed], warm_start=starts, options=opts)
     out = {key: r for (key, _), r in zip(keyed, solved) if r.converged}
     retry = [(key, st) for key, st in keyed if key not in out]
     if retry:
+        log.info("%d state(s) go on from the evaluator's two starts: %s", len(retry),
+                 ", ".join(st.name for _, st in retry))
         out.update(zip([key for key, _ in retry], evaluator.equilibria(design, retry)))
     return out
 

@@ -68,7 +68,8 @@ class SolverOptions:
     lag_contact : the vertices the last Newton step brought onto the surface keep their
     contact model in the next factorisation (``newton._anticipate``); None: at the design
     loop's tolerances (``tol >= 1e-3``), not below (``lagged``);  on_fail : "warn" (log + flag) | "raise"
-    (ConvergenceError) for states that do not converge.
+    (ConvergenceError) | "info" (flag, logged at INFO: for a caller that solves such states
+    again another way) for states that do not converge.
     """
 
     method: str = "newton"
@@ -130,8 +131,8 @@ class SolverOptions:
         if self.factorization not in FACTORIZATIONS:
             raise ValueError(f"factorization must be one of {', '.join(map(repr, FACTORIZATIONS))}, "
                              f"not {self.factorization!r}")
-        if self.on_fail not in ("warn", "raise"):
-            raise ValueError(f"on_fail must be 'warn' or 'raise', not {self.on_fail!r}")
+        if self.on_fail not in ("warn", "raise", "info"):
+            raise ValueError(f"on_fail must be 'warn', 'raise' or 'info', not {self.on_fail!r}")
 
 
 @dataclass(frozen=True)

@@ -110,7 +110,7 @@ def _report(results: list[StateResult], options: SolverOptions) -> None:
                         for r in failed)
         if options.on_fail == "raise":
             raise ConvergenceError(f"states did not converge: {msg}", [r.name for r in failed])
-        log.warning("states did not converge: %s", msg)
+        (log.info if options.on_fail == "info" else log.warning)("states did not converge: %s", msg)
 
 
 def evaluate_state(model: SimModel, design: np.ndarray, state: SimState, x: np.ndarray,
