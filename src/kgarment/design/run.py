@@ -158,6 +158,7 @@ def check_run_folder(path, force: bool = False, resume: bool = False) -> Path:
 def save_checkpoint(run: Path, st: LoopState) -> None:
     names = sorted(st.warm)
     ref_keys = sorted(st.reference)
+    text = metrics_json(st.metrics)
     arrays = dict(
         iteration=np.array(st.iteration), design=st.design, target=np.array(st.target),
         has_alpha=np.array(st.alpha_prev is not None),
@@ -166,7 +167,7 @@ def save_checkpoint(run: Path, st: LoopState) -> None:
         ref_keys=np.array(["|".join(k) for k in ref_keys], dtype=str),
         ref_values=np.array([st.reference[k] for k in ref_keys], dtype=np.float64),
         ref_clutch=np.array([st.reference_stored[k].clutch_energy for k in ref_keys], dtype=np.float64),
-        metrics=np.frombuffer(metrics_json(st.metrics).encode(), np.uint8), done=np.array(st.done),
+        metrics=np.frombuffer(text.encode(), np.uint8), done=np.array(st.done),
         n_faces=np.array(len(st.design)), sim_model=np.array(SIM_MODEL),
         designs=np.array([np.packbits(d) for d in st.designs]) if st.designs else np.zeros((0, 0), np.uint8),
     )
@@ -181,7 +182,7 @@ def save_checkpoint(run: Path, st: LoopState) -> None:
         arrays[f"ref_faces_{i}"] = st.reference_stored[k].face_energy
     atomic_save_npz(run / "checkpoint.npz", compressed=False, **arrays)  # rewritten every iteration
     atomic_save_npz(run / "designs.npz", designs=arrays["designs"], n_faces=arrays["n_faces"])
-    write_metrics(run, st.metrics, text=arrays["metrics"].tobytes().decode())
+    write_metrics(run, st.metrics, text=text)
 
 
 CHECKPOINT_KEYS = ("iteration", "design", "target", "has_alpha", "alpha_prev", "warm_names", "objectives", "ref_keys",

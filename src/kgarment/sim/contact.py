@@ -239,11 +239,13 @@ NEIGHBORS = NeighborStore()
 
 
 def imls(p: torch.Tensor, bv: torch.Tensor, bn: torch.Tensor, bh: torch.Tensor,
-         index: torch.Tensor, valid: torch.Tensor, nearest: torch.Tensor, order: int = 0):
+         index: torch.Tensor, valid: torch.Tensor, nearest: torch.Tensor, order: int = 0,
+         with_covered: bool = False):
     """IMLS value and derivatives.
 
     p : (P, 3); bv, bn : (nb, 3); bh : (nb,); index, valid : (P, K); nearest : (P,).
-    Returns ``f`` (P,), ``grad f`` (P, 3) or None, ``hess f`` (P, 3, 3) or None.
+    Returns ``f`` (P,), ``grad f`` (P, 3) or None, ``hess f`` (P, 3, 3) or None, and with
+    ``with_covered`` also (P,) bool: whether some support covers the point.
     """
     u = p[:, None, :] - bv[index]  # (P, K, 3)
     nrm = bn[index]
@@ -259,13 +261,13 @@ def imls(p: torch.Tensor, bv: torch.Tensor, bn: torch.Tensor, bh: torch.Tensor,
     nn = bn[nearest]
     f = torch.where(covered, f_imls, (nn * un).sum(-1))
     if order == 0:
-        return f, None, None
+        return (f, None, None, covered) if with_covered else (f, None, None)
     dw = (-8.0 * q**3 / hi)[..., None] * u  # (P, K, 3)
     gD = dw.sum(1)
     gN = (phi[..., None] * dw + w[..., None] * nrm).sum(1)
     gf = torch.where(covered[:, None], (gN - f[:, None] * gD) / Ds[:, None], nn)
     if order == 1:
-        return f, gf, None
+        return (f, gf, None, covered) if with_covered else (f, gf, None)
     eye = torch.eye(3, dtype=p.dtype, device=p.device)
     d2w = (-8.0 * q**3 / hi)[..., None, None] * eye + (48.0 * q**2 / hi**2)[..., None, None] * (
         u[..., :, None] * u[..., None, :])
@@ -275,20 +277,19 @@ def imls(p: torch.Tensor, bv: torch.Tensor, bn: torch.Tensor, bh: torch.Tensor,
     hf = (hN - gf[:, :, None] * gD[:, None, :] - gD[:, :, None] * gf[:, None, :]
           - f[:, None, None] * hD) / Ds[:, None, None]
     hf = torch.where(covered[:, None, None], hf, torch.zeros_like(hf))
-    return f, gf, hf
+    return (f, gf, hf, covered) if with_covered else (f, gf, hf)
 
 
-def _uncovered(p: torch.Tensor, bh, index, valid, bv) -> torch.Tensor:
-    """(P,) bool: no listed vertex's support covers the point (as :func:`imls` decides)."""
-    u = p[:, None, :] - bv[index]
-    q = torch.clamp(1.0 - (u * u).sum(-1) / bh[index], min=0.0) * valid
-    return ~((q**4).sum(1) > 0)
-
-
-def nearest_now(tree: cKDTree, p: torch.Tensor) -> torch.Tensor:
-    """(r,) long: the body vertex nearest to each of the points ``p`` (r, 3)."""
-    _, ids = tree.query(p.detach().cpu().numpy(), k=1)
-    return torch.as_tensor(np.asarray(ids, dtype=np.int64).reshape(-1), device=p.device)
+def planes_now(tree: cKDTree, p: torch.Tensor, covered: torch.Tensor, bv, bn):
+    """The points of ``p`` (P, 3) that no support covers (``covered`` (P,) False), on the
+    tangent plane of the body vertex nearest to each now: (rows (r,), those vertices (r,),
+    the plane's value (r,)), or None when every point is covered (:func:`contact`)."""
+    if bool(covered.all()):
+        return None
+    rows = torch.nonzero(~covered).squeeze(1)
+    _, ids = tree.query(p[rows].detach().cpu().numpy(), k=1)
+    ids = torch.as_tensor(np.asarray(ids, dtype=np.int64).reshape(-1), device=p.device)
+    return rows, ids, (bn[ids] * (p[rows] - bv[ids])).sum(1)
 
 
 def imls_fast(p: torch.Tensor, bv, bn, bh, index, valid, nearest, order: int = 0, tree: cKDTree | None = None):
@@ -298,27 +299,20 @@ def imls_fast(p: torch.Tensor, bv, bn, bh, index, valid, nearest, order: int = 0
     of the body vertex nearest to it now rather than ``nearest`` (its list's, from where
     the list was last queried: :func:`contact`)."""
     if order == 0 or not kernels.applies(p):
-        f, gf, hf = imls(p, bv, bn, bh, index, valid, nearest, order=order)
-        out = (f, gf, hf)
-        if tree is None:
-            return out
-        fall = _uncovered(p, bh, index, valid, bv)
+        f, gf, hf, cov = imls(p, bv, bn, bh, index, valid, nearest, order=order, with_covered=True)
     else:
-        f, gf, hf, cov = kernels.imls_order2(*kernels.arrays(p, bv, bn, bh, index, valid, nearest), order)
-        out = (torch.from_numpy(f), torch.from_numpy(gf), torch.from_numpy(hf) if order == 2 else None)
-        if tree is None:
-            return out
-        fall = torch.from_numpy(~cov)
-    if bool(fall.any()):
-        rows = torch.nonzero(fall).squeeze(1)
-        ids = nearest_now(tree, p[rows])
-        f, gf, hf = out
-        f[rows] = (bn[ids] * (p[rows] - bv[ids])).sum(1)
+        f, gf, hf, cov = (torch.from_numpy(a) for a in
+                          kernels.imls_order2(*kernels.arrays(p, bv, bn, bh, index, valid, nearest), order))
+        hf = hf if order == 2 else None
+    fix = None if tree is None else planes_now(tree, p, cov, bv, bn)
+    if fix is not None:
+        rows, ids, value = fix
+        f[rows] = value
         if gf is not None:
             gf[rows] = bn[ids]
         if hf is not None:
             hf[rows] = 0.0
-    return out
+    return f, gf, hf
 
 
 class Candidates(NamedTuple):
@@ -397,11 +391,11 @@ def contact(p: torch.Tensor, k: torch.Tensor, bv, bn, bh, index, valid, nearest,
     if pre is None:
         pre = gather(bv, bn, bh, index, valid, nearest)
     f, cov = imls_value(p, pre, with_covered=True)
-    if tree is not None and not bool(cov.all()):
-        rows = torch.nonzero(~cov).squeeze(1)
-        ids = nearest_now(tree, p[rows])
+    fix = None if tree is None else planes_now(tree, p, cov, bv, bn)
+    if fix is not None:
+        rows, _, value = fix
         f = f.clone()
-        f[rows] = (bn[ids] * (p[rows] - bv[ids])).sum(1)
+        f[rows] = value
     neg = torch.clamp(f, max=0.0)
     e = k * neg * neg
     if order == 0:
