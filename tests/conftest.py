@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import logging
+import os
+import shutil
+import tempfile
 
 import pytest
 
@@ -20,9 +23,17 @@ def _session_body():
 def pytest_configure(config):
     """With pytest-xdist (``make test`` runs ``-n auto``), the controller builds the body's
     caches (Anny's own, ~2 minutes on a fresh machine, and kgarment's) before the workers
-    start, so that they are built once and not by every worker at the same time."""
-    if getattr(config, "workerinput", None) is None and config.getoption("numprocesses", default=None):
-        _session_body()
+    start, so that they are built once and not by every worker at the same time.
+
+    The fully reinforced garments' solves (``kgarment.design.store.shared_store``) go to a
+    folder of this session's own (the workers inherit it), not to the machine's cache: every
+    test run solves them once, as a fresh machine does, whatever ran before."""
+    if getattr(config, "workerinput", None) is None:
+        folder = tempfile.mkdtemp(prefix="kgarment-solves-")
+        os.environ["KGARMENT_SOLVE_CACHE"] = folder
+        config.add_cleanup(lambda: shutil.rmtree(folder, ignore_errors=True))
+        if config.getoption("numprocesses", default=None):
+            _session_body()
 
 
 # Scheduling under pytest-xdist (``make test``: ``-n auto --dist loadscope

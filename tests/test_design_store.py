@@ -150,3 +150,67 @@ def test_numpy_scalars_in_a_record_round_trip(tmp_path, stored):
     back = store.get(("k",))
     assert back.convergence == r.convergence and back.total_energy == r.total_energy
     np.testing.assert_array_equal(back.x, r.x)
+
+
+def test_the_full_garment_is_solved_once_per_machine(tmp_path, monkeypatch):
+    """The fully reinforced garment's solves (iteration 0, the references of rho) go to the
+    shared store in kgarment's cache: a second evaluator of the same problem, in a new
+    process and without a run folder, solves only the design's states and gives the same
+    numbers; a design's own solves are not kept there."""
+    from kgarment.design.store import SHARED
+
+    monkeypatch.setenv("KGARMENT_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.delenv("KGARMENT_SOLVE_CACHE", raising=False)
+    ev, design = _evaluator()
+    first = ev.evaluate(design)
+    (version,) = (tmp_path / "cache" / SHARED).iterdir()
+    kept = sorted(version.glob("*.npz"))
+    assert len(kept) == 3  # ON and OFF from skin-tight, ON again from OFF: the design's are not shared
+    calls = _count_solves(monkeypatch)
+    ev2, _ = _evaluator()
+    again = ev2.evaluate(design)
+    assert calls == [2 * len(first.states)]  # the design from its two starts, nothing else
+    assert [(s.rho, s.energy, s.energy_full) for s in again.states] == \
+        [(s.rho, s.energy, s.energy_full) for s in first.states]
+    full = ev2.setup.solve(np.ones(len(design)), [s for _, s in ev2.keyed()])  # iteration 0 of a run
+    assert calls == [2 * len(first.states)]  # read back: solved by the first evaluator
+    assert all(r.converged for r in full)
+    assert sorted(version.glob("*.npz")) == kept
+
+
+def test_the_shared_store_can_be_turned_off_and_keeps_only_converged_solves(tmp_path, monkeypatch):
+    from kgarment.design.store import SHARED
+
+    monkeypatch.setenv("KGARMENT_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setenv("KGARMENT_SOLVE_CACHE", "0")
+    ev, design = _evaluator()
+    ev.setup.solve(np.ones(len(design)), [s for _, s in ev.keyed()])
+    assert not (tmp_path / "cache" / SHARED).exists()
+    monkeypatch.setenv("KGARMENT_SOLVE_CACHE", "1")
+    stopped = SolverOptions(tol=1e-5, max_iter=2)  # cannot converge in two iterations
+    (r,) = ev.setup.solve(np.ones(len(design)), [ev.keyed()[0][1]], options=stopped)
+    assert not r.converged
+    assert not list((tmp_path / "cache" / SHARED).rglob("*.npz"))  # solved again, and reported, next time
+
+
+def test_the_shared_store_keeps_the_latest_code_versions_only(tmp_path, monkeypatch):
+    """Entries of older code are never read (the key names the code); the store removes the
+    folders of all but the most recently used versions, and nothing else in its folder."""
+    import os
+
+    from kgarment.design.store import SHARED, SHARED_VERSIONS, shared_store
+
+    monkeypatch.setenv("KGARMENT_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.delenv("KGARMENT_SOLVE_CACHE", raising=False)
+    root = tmp_path / "cache" / SHARED
+    old = [root / f"{i:032x}" for i in range(SHARED_VERSIONS + 2)]
+    for i, p in enumerate(old):
+        p.mkdir(parents=True)
+        (p / "entry.npz").write_bytes(b"x")
+        os.utime(p, (1e9 + i, 1e9 + i))  # old[-1] the most recently used
+    (root / "notes").mkdir()  # not a version's folder: left alone
+    store = shared_store()
+    assert store is not None and store.folder.parent == root
+    left = sorted(p.name for p in root.iterdir())
+    assert "notes" in left and store.folder.name in left
+    assert [p.name for p in old if p.exists()] == [p.name for p in old[-(SHARED_VERSIONS - 1):]]

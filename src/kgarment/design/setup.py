@@ -128,10 +128,19 @@ class DesignSetup:
     def solve(self, design: np.ndarray, states, warm_start=None, options: SolverOptions | None = None) -> list:
         """:func:`kgarment.sim.solve_states` of ``states`` (SimState list; warm_start and
         options as there, options default ``self.solver``), each on its motion's wearer's model;
-        through ``store`` where there is one (a solve done before is read back, not repeated)."""
+        through ``store`` where there is one (a solve done before is read back, not repeated);
+        the fully reinforced garment's also through the machine's shared store
+        (:func:`kgarment.design.store.shared_store`: every run of the same problem needs them)."""
         options = self.solver if options is None else options
+        shared = None
+        if np.all(np.asarray(design) == 1.0):  # the fully reinforced garment: the same in every run
+            from kgarment.design.store import shared_store
+
+            shared = shared_store()
         if self.store is not None:
-            return self.store.solve(self, design, list(states), warm_start, options)
+            return self.store.solve(self, design, list(states), warm_start, options, also=shared)
+        if shared is not None:
+            return shared.solve(self, design, list(states), warm_start, options)
         return self.solve_now(design, states, warm_start, options)
 
     def solve_now(self, design: np.ndarray, states, warm_start, options: SolverOptions) -> list:

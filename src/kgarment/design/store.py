@@ -24,6 +24,16 @@ pickle: nothing in a run folder is executed on reading), written to a temporary 
 renamed, so a reader never sees half a file; an unreadable entry is reported and solved
 again.  Size: about 0.1 MB per solve at subdivision 0 (the main job's final evaluation:
 ~40 solves, 3 MB), ~1.3 MB at subdivision 2.
+
+The fully reinforced garment's solves (iteration 0 of every design run, the references of
+rho in every evaluation) depend on the problem, not on a design: :func:`shared_store`
+keeps them for every run on the machine, in kgarment's cache (``KGARMENT_CACHE_DIR``,
+``equilibria/``), as Anny keeps its model: the first run of a garment, its motions and
+clutches solves them, later runs, evaluations and reproductions of the same read them
+back (the same bits: the key names every input).  Only converged solves are kept there.
+One folder per code version (:func:`code_digest`); the :data:`SHARED_VERSIONS` most
+recently used stay, older ones are removed.  ``KGARMENT_SOLVE_CACHE=0`` turns it off,
+``KGARMENT_SOLVE_CACHE=FOLDER`` puts it in FOLDER (the test suite: one per session).
 """
 
 from __future__ import annotations
@@ -33,12 +43,15 @@ import functools
 import hashlib
 import json
 import logging
+import os
+import re
+import shutil
 from pathlib import Path
 
 import numpy as np
 
 from kgarment.constants import SIM_MODEL
-from kgarment.io import atomic_save_npz
+from kgarment.io import atomic_save_npz, cache_dir
 from kgarment.sim import StateResult
 from kgarment.sim.options import Convergence
 
@@ -47,6 +60,10 @@ FOLDER = "equilibria"  # the store's folder in a run folder
 # the sources whose change can change what a solve returns (a key names all its inputs, so
 # the evaluation's own logic -- which solves it asks for -- is not among them)
 CODE = ("sim", "design/setup.py", "design/store.py", "constants.py")
+SHARED = "equilibria"  # the shared store's folder in kgarment's cache (shared_store)
+SHARED_VERSIONS = 4  # code versions whose folders the shared store keeps (the most recently used)
+DIGESTS_KEPT = 16  # objects (models, bodies' normals) whose digests a store remembers
+_VERSION = re.compile(r"[0-9a-f]{32}")  # a code version's folder name (content_digest)
 
 
 @functools.cache
@@ -105,6 +122,37 @@ def _feed(h, obj, depth: int = 0) -> None:
         h.update(f"{type(obj).__qualname__}:{obj!r}".encode())
 
 
+def shared_store() -> EquilibriumStore | None:
+    """The store of fully reinforced garments' solves shared by every run on this machine
+    (module docstring), or None where ``KGARMENT_SOLVE_CACHE=0``.  Its folder is
+    ``cache_dir()/equilibria/<code version>`` (``KGARMENT_SOLVE_CACHE=FOLDER``: FOLDER's); opening it marks the version used and removes
+    the folders of all but the :data:`SHARED_VERSIONS` most recently used versions (only
+    folders named like a version: nothing else there is touched)."""
+    setting = os.environ.get("KGARMENT_SOLVE_CACHE", "").strip()
+    if setting.lower() in ("0", "off", "no", "false"):
+        return None
+    root = cache_dir() / SHARED if setting.lower() in ("", "1", "on", "yes", "true") else Path(setting)
+    folder = root / content_digest(SIM_MODEL, code_digest())
+    store = _SHARED.get(folder)
+    if store is None:
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            os.utime(folder)  # used now: the pruning below keeps the most recently used
+            versions = sorted((p for p in root.iterdir() if p.is_dir() and _VERSION.fullmatch(p.name)),
+                              key=lambda p: p.stat().st_mtime, reverse=True)
+            for old in versions[SHARED_VERSIONS:]:
+                if old != folder:
+                    shutil.rmtree(old, ignore_errors=True)
+        except OSError as exc:  # the store only saves time
+            log.warning("equilibrium cache: %s not usable (%s); solving without it", folder, exc)
+            return None
+        store = _SHARED[folder] = EquilibriumStore(folder, converged_only=True)
+    return store
+
+
+_SHARED: dict[Path, EquilibriumStore] = {}  # shared_store's instance per folder (this process)
+
+
 def run_store(run) -> EquilibriumStore:
     """The store of run folder ``run`` (its :data:`FOLDER`)."""
     return EquilibriumStore(Path(run) / FOLDER)
@@ -113,16 +161,21 @@ def run_store(run) -> EquilibriumStore:
 class EquilibriumStore:
     """Solved states (:class:`~kgarment.sim.StateResult`) in ``folder``, one ``.npz`` per
     key (see the module docstring).  ``hits`` / ``misses`` count the solves read back /
-    not found."""
+    not found.  ``converged_only``: solves that did not converge are not kept (solved again,
+    and reported again, next time)."""
 
-    def __init__(self, folder):
+    def __init__(self, folder, converged_only: bool = False):
         self.folder = Path(folder)
+        self.converged_only = converged_only
         self.hits = self.misses = 0
         self._digests: dict[int, tuple[object, str]] = {}  # id -> (the object, kept alive; its digest)
 
-    def solve(self, setup, design: np.ndarray, states: list, warm_start, options) -> list[StateResult]:
+    def solve(self, setup, design: np.ndarray, states: list, warm_start, options,
+              also: EquilibriumStore | None = None) -> list[StateResult]:
         """``setup.solve_now`` of the states not in the store, the others read back (under
-        the states' own names); the new ones are kept."""
+        the states' own names); the new ones are kept.  ``also``: a second store (the
+        shared one) looked in for what this one lacks; what it has is copied here, what is
+        solved is kept in both."""
         from kgarment.design.evaluate import design_digest, state_digest
 
         warm = list(warm_start) if warm_start is not None else [None] * len(states)
@@ -135,6 +188,10 @@ class EquilibriumStore:
         out: list = [None] * len(states)
         for i, key in enumerate(keys):
             got = self.get(key)
+            if got is None and also is not None:
+                got = also.get(key)
+                if got is not None:
+                    self.put(key, got)
             if got is not None:
                 out[i] = dataclasses.replace(got, name=states[i].name)
         todo = [i for i, r in enumerate(out) if r is None]
@@ -143,6 +200,8 @@ class EquilibriumStore:
             for i, r in zip(todo, solved):
                 out[i] = r
                 self.put(keys[i], r)
+                if also is not None:
+                    also.put(keys[i], r)
         return out
 
     def _digest(self, obj) -> str:
@@ -151,6 +210,8 @@ class EquilibriumStore:
         hit = self._digests.get(id(obj))
         if hit is None or hit[0] is not obj:
             hit = self._digests[id(obj)] = (obj, content_digest(obj))
+            while len(self._digests) > DIGESTS_KEPT:  # a long-lived store (the shared one, the studio's
+                del self._digests[next(iter(self._digests))]  # jobs) holds only the latest objects
         return hit[1]
 
     def _file(self, key: tuple) -> Path:
@@ -175,6 +236,8 @@ class EquilibriumStore:
     def put(self, key: tuple, value: StateResult) -> None:
         """Keep ``value`` under ``key`` (a failure to write is reported, not raised: the
         store only saves time)."""
+        if self.converged_only and not value.converged:
+            return
         path = self._file(key)
         try:
             atomic_save_npz(path, **_fields(value))
