@@ -176,6 +176,13 @@ def test_the_full_garment_is_solved_once_per_machine(tmp_path, monkeypatch):
     assert calls == [2 * len(first.states)]  # read back: solved by the first evaluator
     assert all(r.converged for r in full)
     assert sorted(version.glob("*.npz")) == kept
+    run = EquilibriumStore(tmp_path / "run" / "equilibria")  # a run's store takes them from the shared one
+    calls.clear()
+    third, _ = _evaluator(run)
+    third.evaluate(design)
+    assert calls == [2 * len(first.states)] and run.hits == 0
+    assert run.borrowed == 3 and run.misses - run.borrowed == 2 * len(first.states)
+    assert len(list(run.folder.glob("*.npz"))) == 3 + 2 * len(first.states)  # the run keeps a copy
 
 
 def test_the_shared_store_can_be_turned_off_and_keeps_only_converged_solves(tmp_path, monkeypatch):

@@ -196,9 +196,10 @@ def cmd_evaluate(args) -> int:
         print(f"wrote {path_plot(path, stem.with_suffix('.png'), title)}"
               f" and {stem.with_suffix('.json')}")
     res = ev.evaluate(design, loads=not args.no_loads, known=path.ends if path is not None else None)
-    if store.hits:
+    if store.hits or store.borrowed:
+        shared = f", {store.borrowed} from the machine's cache of fully reinforced garments" if store.borrowed else ""
         print(f"{store.hits} solves read back from {store.folder} (the same state from the same start, "
-              f"solved before), {store.misses} solved now")
+              f"solved before){shared}, {store.misses - store.borrowed} solved now")
     print_evaluation(res)
     if args.plot and res.loads is not None:
         print(f"wrote {load_chart(res.loads, args.plot, f'{src}: clutch loads')}")

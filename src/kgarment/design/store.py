@@ -161,13 +161,14 @@ def run_store(run) -> EquilibriumStore:
 class EquilibriumStore:
     """Solved states (:class:`~kgarment.sim.StateResult`) in ``folder``, one ``.npz`` per
     key (see the module docstring).  ``hits`` / ``misses`` count the solves read back /
-    not found.  ``converged_only``: solves that did not converge are not kept (solved again,
+    not found; ``borrowed``: of the misses, those read from the ``also`` store of
+    :meth:`solve` (the shared one) instead of solved.  ``converged_only``: solves that did not converge are not kept (solved again,
     and reported again, next time)."""
 
     def __init__(self, folder, converged_only: bool = False):
         self.folder = Path(folder)
         self.converged_only = converged_only
-        self.hits = self.misses = 0
+        self.hits = self.misses = self.borrowed = 0
         self._digests: dict[int, tuple[object, str]] = {}  # id -> (the object, kept alive; its digest)
 
     def solve(self, setup, design: np.ndarray, states: list, warm_start, options,
@@ -191,6 +192,7 @@ class EquilibriumStore:
             if got is None and also is not None:
                 got = also.get(key)
                 if got is not None:
+                    self.borrowed += 1
                     self.put(key, got)
             if got is not None:
                 out[i] = dataclasses.replace(got, name=states[i].name)
