@@ -124,33 +124,40 @@ def _feed(h, obj, depth: int = 0) -> None:
 
 def shared_store() -> EquilibriumStore | None:
     """The store of fully reinforced garments' solves shared by every run on this machine
-    (module docstring), or None where ``KGARMENT_SOLVE_CACHE=0``.  Its folder is
-    ``cache_dir()/equilibria/<code version>`` (``KGARMENT_SOLVE_CACHE=FOLDER``: FOLDER's); opening it marks the version used and removes
-    the folders of all but the :data:`SHARED_VERSIONS` most recently used versions (only
-    folders named like a version: nothing else there is touched)."""
+    (module docstring), or None where ``KGARMENT_SOLVE_CACHE=0`` or its folder cannot be
+    made (reported once).  Its folder is ``cache_dir()/equilibria/<code version>``
+    (``KGARMENT_SOLVE_CACHE=FOLDER``: in FOLDER); opening it marks the version used and
+    removes the folders of all but the :data:`SHARED_VERSIONS` most recently used versions
+    (only folders named like a version: nothing else there is touched)."""
     setting = os.environ.get("KGARMENT_SOLVE_CACHE", "").strip()
     if setting.lower() in ("0", "off", "no", "false"):
         return None
-    root = cache_dir() / SHARED if setting.lower() in ("", "1", "on", "yes", "true") else Path(setting)
+    try:
+        root = cache_dir() / SHARED if setting.lower() in ("", "1", "on", "yes", "true") else Path(setting)
+    except OSError as exc:
+        log.warning("equilibrium cache: kgarment's cache folder is not usable (%s); solving without it", exc)
+        return None
     folder = root / content_digest(SIM_MODEL, code_digest())
-    store = _SHARED.get(folder)
-    if store is None:
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            os.utime(folder)  # used now: the pruning below keeps the most recently used
-            versions = sorted((p for p in root.iterdir() if p.is_dir() and _VERSION.fullmatch(p.name)),
-                              key=lambda p: p.stat().st_mtime, reverse=True)
-            for old in versions[SHARED_VERSIONS:]:
-                if old != folder:
-                    shutil.rmtree(old, ignore_errors=True)
-        except OSError as exc:  # the store only saves time
-            log.warning("equilibrium cache: %s not usable (%s); solving without it", folder, exc)
-            return None
-        store = _SHARED[folder] = EquilibriumStore(folder, converged_only=True)
+    if folder in _SHARED:
+        return _SHARED[folder]
+    store = None
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        os.utime(folder)  # used now: the pruning below keeps the most recently used
+        versions = sorted((p for p in root.iterdir() if p.is_dir() and _VERSION.fullmatch(p.name)),
+                          key=lambda p: p.stat().st_mtime, reverse=True)
+        for old in versions[SHARED_VERSIONS:]:
+            if old != folder:
+                shutil.rmtree(old, ignore_errors=True)
+    except OSError as exc:  # the store only saves time
+        log.warning("equilibrium cache: %s not usable (%s); solving without it", folder, exc)
+    else:
+        store = EquilibriumStore(folder, converged_only=True)
+    _SHARED[folder] = store  # an unusable folder is reported once per process
     return store
 
 
-_SHARED: dict[Path, EquilibriumStore] = {}  # shared_store's instance per folder (this process)
+_SHARED: dict[Path, EquilibriumStore | None] = {}  # shared_store's instance per folder (this process)
 
 
 def run_store(run) -> EquilibriumStore:
