@@ -28,7 +28,6 @@ skin-tight start at 0.444 J (rho ON 0.889).
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import logging
 from collections import OrderedDict
 from collections.abc import Callable
@@ -39,6 +38,7 @@ import numpy as np
 from kgarment.design.loads import LoadReport, clutch_loads
 from kgarment.design.metrics import Stored, relative_energy_density
 from kgarment.design.setup import DesignSetup, StateKey, setup_from_problem
+from kgarment.design.store import design_digest, state_digest
 from kgarment.errors import Cancelled, KgarmentError, unknown
 from kgarment.problem import Problem, build_body, build_clutches, build_garment
 from kgarment.sim import SimState, StateResult
@@ -384,21 +384,6 @@ class Evaluator:
             solid, tuple(rows), float(setup.areas[solid].sum() / setup.areas.sum()), shape["islands"],
             shape["islands_with_clutches"], shape["clutch_ends_supported"], shape["clutch_ends"],
             by_wearer=shape.get("by_wearer"))
-
-
-def design_digest(design: np.ndarray) -> str:
-    """A digest of a design's values (m,), exactly (float64 bytes)."""
-    return hashlib.blake2b(np.ascontiguousarray(design, dtype=np.float64).tobytes(), digest_size=12).hexdigest()
-
-
-def state_digest(state: SimState) -> str:
-    """A digest of what a state's equilibrium depends on besides the design: the posed
-    body, the skin-tight garment, its attachments and the clutch activation (not the name)."""
-    m = state.motion
-    h = hashlib.blake2b(m.body.key.encode(), digest_size=12)
-    for a in (m.garment_x0, m.attach_faces, m.attach_targets, np.asarray(state.activation, dtype=np.float64)):
-        h.update(np.ascontiguousarray(a).tobytes())
-    return h.hexdigest()
 
 
 def activation_continuation(setup: DesignSetup, design: np.ndarray, states: list[SimState],

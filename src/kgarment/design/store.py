@@ -17,7 +17,7 @@ written by code that solves differently is not used), the solver options (not th
 processes: solves repeat bit for bit in any process), the state's simulation model
 (garment, clutches, materials, clutch model: every array of it), the design's values, the
 posed body (vertices and normals), the skin-tight garment, its attachments and the clutch
-activation (:func:`kgarment.design.evaluate.state_digest`) and the start (the skin-tight garment, or
+activation (:func:`state_digest`) and the start (the skin-tight garment, or
 the start's positions).  A different clutch model or friction given on the command line,
 another body, design or start simply finds no entry.  One ``.npz`` file per entry (no
 pickle: nothing in a run folder is executed on reading), written to a temporary name and
@@ -52,7 +52,7 @@ import numpy as np
 
 from kgarment.constants import SIM_MODEL
 from kgarment.io import atomic_save_npz, cache_dir
-from kgarment.sim import StateResult
+from kgarment.sim import SimState, StateResult
 from kgarment.sim.options import Convergence
 
 log = logging.getLogger(__name__)
@@ -122,6 +122,21 @@ def _feed(h, obj, depth: int = 0) -> None:
         h.update(f"{type(obj).__qualname__}:{obj!r}".encode())
 
 
+def design_digest(design: np.ndarray) -> str:
+    """A digest of a design's values (m,), exactly (float64 bytes)."""
+    return hashlib.blake2b(np.ascontiguousarray(design, dtype=np.float64).tobytes(), digest_size=12).hexdigest()
+
+
+def state_digest(state: SimState) -> str:
+    """A digest of what a state's equilibrium depends on besides the design: the posed
+    body, the skin-tight garment, its attachments and the clutch activation (not the name)."""
+    m = state.motion
+    h = hashlib.blake2b(m.body.key.encode(), digest_size=12)
+    for a in (m.garment_x0, m.attach_faces, m.attach_targets, np.asarray(state.activation, dtype=np.float64)):
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
 def shared_store() -> EquilibriumStore | None:
     """The store of fully reinforced garments' solves shared by every run on this machine
     (module docstring), or None where ``KGARMENT_SOLVE_CACHE=0`` or its folder cannot be
@@ -184,8 +199,6 @@ class EquilibriumStore:
         the states' own names); the new ones are kept.  ``also``: a second store (the
         shared one) looked in for what this one lacks; what it has is copied here, what is
         solved is kept in both."""
-        from kgarment.design.evaluate import design_digest, state_digest
-
         warm = list(warm_start) if warm_start is not None else [None] * len(states)
         opts = content_digest(dataclasses.replace(options, workers=0))
         d = design_digest(design)
