@@ -46,6 +46,7 @@ import logging
 import os
 import re
 import shutil
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -62,7 +63,7 @@ FOLDER = "equilibria"  # the store's folder in a run folder
 CODE = ("sim", "design/setup.py", "design/store.py", "constants.py")
 SHARED = "equilibria"  # the shared store's folder in kgarment's cache (shared_store)
 SHARED_VERSIONS = 4  # code versions whose folders the shared store keeps (the most recently used)
-DIGESTS_KEPT = 16  # objects (models, bodies' normals) whose digests a store remembers
+DIGESTS_KEPT = 64  # remembered digests beyond which those of objects that are gone are forgotten
 _VERSION = re.compile(r"[0-9a-f]{32}")  # a code version's folder name (content_digest)
 
 
@@ -184,14 +185,14 @@ class EquilibriumStore:
     """Solved states (:class:`~kgarment.sim.StateResult`) in ``folder``, one ``.npz`` per
     key (see the module docstring).  ``hits`` / ``misses`` count the solves read back /
     not found; ``borrowed``: of the misses, those read from the ``also`` store of
-    :meth:`solve` (the shared one) instead of solved.  ``converged_only``: solves that did not converge are not kept (solved again,
-    and reported again, next time)."""
+    :meth:`solve` (the shared one) instead of solved.  ``converged_only``: solves that did
+    not converge are not kept (solved again, and reported again, next time)."""
 
     def __init__(self, folder, converged_only: bool = False):
         self.folder = Path(folder)
         self.converged_only = converged_only
         self.hits = self.misses = self.borrowed = 0
-        self._digests: dict[int, tuple[object, str]] = {}  # id -> (the object, kept alive; its digest)
+        self._digests: dict[int, tuple[weakref.ref, str]] = {}  # id -> (a reference to the object, its digest)
 
     def solve(self, setup, design: np.ndarray, states: list, warm_start, options,
               also: EquilibriumStore | None = None) -> list[StateResult]:
@@ -230,11 +231,17 @@ class EquilibriumStore:
         """content_digest of a large object that stays the same (a model, a body's normals),
         computed once per object."""
         hit = self._digests.get(id(obj))
-        if hit is None or hit[0] is not obj:
-            hit = self._digests[id(obj)] = (obj, content_digest(obj))
-            while len(self._digests) > DIGESTS_KEPT:  # a long-lived store (the shared one, the studio's
-                del self._digests[next(iter(self._digests))]  # jobs) holds only the latest objects
-        return hit[1]
+        if hit is not None and hit[0]() is obj:
+            return hit[1]
+        digest = content_digest(obj)
+        try:
+            ref = weakref.ref(obj)  # not kept alive by the store (the shared one lives as long as the process)
+        except TypeError:
+            return digest
+        self._digests[id(obj)] = (ref, digest)
+        if len(self._digests) > DIGESTS_KEPT:  # forget the objects that are gone
+            self._digests = {k: v for k, v in self._digests.items() if v[0]() is not None}
+        return digest
 
     def _file(self, key: tuple) -> Path:
         return self.folder / f"{content_digest(SIM_MODEL, code_digest(), *key)}.npz"
