@@ -268,7 +268,9 @@ def add_parsers(sub) -> None:
                         "islands, clutch ends, and the load each clutch carries",
                         description="Evaluate a design of a run with the one design evaluator. Solves done "
                         "before on the run (its final evaluation, an earlier evaluate or plan) are read back "
-                        "from RUN/equilibria/ instead of solved again: the same numbers, without the work.")
+                        "from RUN/equilibria/ instead of solved again: the same numbers, without the work; "
+                        "the fully reinforced garment's also from the machine's cache (~/.cache/kgarment/"
+                        "equilibria/, KGARMENT_SOLVE_CACHE=0 turns it off).")
     sp.add_argument("design", help="run folder (its final design) or RUN@ITERATION")
     sp.add_argument("--motion", action="append", help="motion to evaluate on (repeatable); default: the run's")
     sp.add_argument("--json", help="also write the results as JSON to this file")
