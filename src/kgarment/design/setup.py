@@ -16,6 +16,7 @@ import scipy.sparse as sp
 from kgarment.design.beso import one_ring_filter, radius_filter
 from kgarment.design.metrics import clutch_end_support, islands
 from kgarment.design.objective import states_needed
+from kgarment.design.store import shared_store
 from kgarment.design.wearers import ClutchEnds, Wearer, clutch_ends, wearer_motions
 from kgarment.errors import KgarmentError
 from kgarment.garment import Garment
@@ -134,8 +135,6 @@ class DesignSetup:
         options = self.solver if options is None else options
         shared = None
         if np.all(np.asarray(design) == 1.0):  # the fully reinforced garment: the same in every run
-            from kgarment.design.store import shared_store
-
             shared = shared_store()
         if self.store is not None:
             return self.store.solve(self, design, list(states), warm_start, options, also=shared)
