@@ -62,6 +62,52 @@ def test_manual_strips_reach_a_free_ring_never_their_own_clutch():
     assert islands(f, below) == 2
 
 
+def test_manual_strips_of_one_clutch_go_to_two_anchors():
+    """A clutch near the left of a sheet held along its left and right edges: both ends are
+    nearest the left edge, but a clutch strapped to one edge at both ends sits between two
+    points nothing moves apart, so the second end's strip runs to the right edge."""
+    v, f = grid()
+    c = v[f].mean(1)
+    held = (c[:, 0] < 0.01) | (c[:, 0] > 0.19)
+    a = faces_near(v, f, np.array([0.05, 0.1, 0.0]), 0.008)
+    b = faces_near(v, f, np.array([0.08, 0.1, 0.0]), 0.008)
+    d = manual_design(v, f, [(a, b)], [], held, budget=0.06) > 0.5
+    from kgarment.design.metrics import islands
+
+    assert islands(f, d) == 2  # two strips, joined only through the clutch
+    left, right = d & (c[:, 0] < 0.01), d & (c[:, 0] > 0.19)
+    assert left.any() and right.any()
+    assert np.all(np.abs(c[d, 1] - 0.1) < 0.03)  # both straight along y = 0.1
+    # with one anchor only there is nowhere else to go: both ends to it
+    one = manual_design(v, f, [(a, b)], [], c[:, 0] < 0.01, budget=0.06) > 0.5
+    assert not (one & (c[:, 0] > 0.19)).any()
+
+
+def test_the_manual_baseline_loads_a_clutch_nearest_one_ring():
+    """A tube held at its bottom ring and pulled 5% at its top, an 8 cm clutch near the bottom:
+    with both ends strapped to the bottom ring (the nearest anchor of each) the clutch would
+    carry nothing; the manual baseline takes its upper end to the top ring, so switching the
+    clutch on carries the pull (share of the ON - OFF energy, method.md section 9)."""
+    from kgarment.design import Evaluator
+    from kgarment.design.setup import DesignSetup
+    from kgarment.problem import BesoParams
+    from kgarment.sim import SolverOptions, build_model
+    from kgarment.sim.synthetic import Tube
+
+    tube = Tube(0.05, 0.0, 0.3, 48, 31)
+    clutch = tube.clutch("low", 0.0, 0.04, 0.12, 0.01, 16)
+    model = build_model(tube.vertices, tube.faces, [clutch], preset="paper")
+    setup = DesignSetup.build(model, {"pull": tube.motion("pull", 0.05, 0.0)}, "active", BesoParams(),
+                              SolverOptions(tol=1e-5, max_iter=300))
+    held = np.zeros(len(tube.faces), bool)
+    held[np.concatenate([tube.ring_faces(0), tube.ring_faces(tube.n_z - 2)])] = True
+    design = manual_design(tube.vertices, tube.faces, setup.end_faces, [], held, budget=0.08)
+    top = tube.ring_faces(tube.n_z - 2)
+    assert (design[top] > 0.5).any() and (design[tube.ring_faces(0)] > 0.5).any()
+    load = Evaluator(setup).evaluate(design, loads=True).loads.get("pull", "low")
+    assert load.share > 0.5 and load.loaded
+
+
 def test_manual_and_random_designs_spend_the_budget():
     v, f = grid()
     areas = triangle_areas(v, f)

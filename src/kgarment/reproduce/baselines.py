@@ -6,7 +6,12 @@
   so anchored (another clutch's, when less than half as far) -- along the shortest path over the garment (Dijkstra on
   the face adjacency graph, edge weights = distances between face centroids), the band a
   strip reaches drawn all around the limb, then everything widened evenly (faces in order
-  of their surface distance to the strips) until the budget is spent.  On the sleeves it is
+  of their surface distance to the strips) until the budget is spent.  A clutch's two ends
+  go to two different anchors (where the garment has more than one): a clutch whose ends
+  both hang on one attachment ring sits between two points the body does not move apart
+  and carries nothing (the shirt's lower V, both ends strapped to the hem, did so until
+  2026-11-28), so the second end's strip goes to the nearest *other* anchor, never through
+  the first end's.  On the sleeves it is
   the forearm line of the paper (clutch ends to the cuff rings).  (It replaces a "line"
   baseline whose strips went to the nearest attachment *or clutch end*: on the shirt the
   clutch ends are nearest to one another, so its strips joined the clutches in a ring held
@@ -27,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import connected_components, dijkstra
 
 from kgarment.constants import X_MIN
 from kgarment.design.beso import one_ring_filter
@@ -67,28 +72,27 @@ def manual_design(vertices: np.ndarray, faces: np.ndarray, end_faces, rings, hel
     held : (m,) bool faces the body holds already (attachment rings: reaching one is enough).
     The strips come first in the budget, then the rings they reach, then the widening."""
     graph = dual_graph(vertices, faces)
+    anchor = anchor_labels(graph, rings, held)  # (m,) which anchor a face is; -1 none
     rings = [np.unique(np.asarray(r, dtype=int)) for r in rings if len(r)]
     ring_of = np.full(len(faces), -1)
     for k, r in enumerate(rings):
         ring_of[r] = k
-    anchored = (ring_of >= 0) | np.asarray(held, bool)
     strip = np.zeros(len(faces), bool)
     band = np.zeros(len(faces), bool)
     owner = np.full(len(faces), -1)  # the clutch whose strip drew a face
+    leads = np.full(len(faces), -1)  # the anchor a strip face leads to
+    reached: dict[int, int] = {}  # clutch -> the anchor its first strip reached
     starts = [(k, np.unique(np.asarray(e, dtype=int))) for k, pair in enumerate(end_faces) for e in pair]
-    dist0 = [dijkstra(graph, indices=s, min_only=True)[anchored].min() if anchored.any() else np.inf
+    dist0 = [dijkstra(graph, indices=s, min_only=True)[anchor >= 0].min() if (anchor >= 0).any() else np.inf
              for _, s in starts]
     for i in np.argsort(dist0, kind="stable"):
         k, start = starts[i]
-        dist, pred, _ = dijkstra(graph, indices=start, min_only=True, return_predecessors=True)
-        to_anchor = np.flatnonzero((anchored | band) & np.isfinite(dist))
-        to_strip = np.flatnonzero(strip & (owner != k) & np.isfinite(dist))  # never its own strips
-        if not len(to_anchor) and not len(to_strip):
+        target = _strip_target(graph, start, anchor, strip & (owner != k), leads, reached.get(k, -1))
+        if target is None:
             continue
-        a = to_anchor[np.argmin(dist[to_anchor])] if len(to_anchor) else None
-        b = to_strip[np.argmin(dist[to_strip])] if len(to_strip) else None
-        # another clutch's (anchored) strip only when much nearer than the limb or the ring
-        f = int(b if a is None or (b is not None and dist[b] < STRIP_PREFERENCE * dist[a]) else a)
+        f, pred = target
+        to = int(anchor[f] if anchor[f] >= 0 else leads[f])
+        reached.setdefault(k, to)
         if ring_of[f] >= 0:
             band[rings[ring_of[f]]] = True  # the strip's ring goes all around the limb
         path = [int(x) for x in start]  # the whole end, then the way to the target
@@ -96,13 +100,57 @@ def manual_design(vertices: np.ndarray, faces: np.ndarray, end_faces, rings, hel
             path.append(f)
             f = int(pred[f])
         fresh = np.array([x for x in path if not strip[x]], dtype=int)
-        strip[fresh], owner[fresh] = True, k
+        strip[fresh], owner[fresh], leads[fresh] = True, k, to
     if not strip.any():
         return np.full(len(faces), x_min)
     drawn = strip | band
     dist = dijkstra(graph, indices=np.flatnonzero(drawn), min_only=True)
     key = np.where(strip, 0.0, np.where(band, 1.0, 2.0 + np.where(np.isfinite(dist), dist, np.inf)))
     return _take_budget(key, triangle_areas(vertices, faces), budget, x_min)
+
+
+def anchor_labels(graph: sp.csr_matrix, rings, held: np.ndarray) -> np.ndarray:
+    """(m,) int: per face, which anchor it is -- each connected piece of ``held`` (an
+    attachment ring) one label, each limb ring of ``rings`` the next ones -- or -1."""
+    held = np.asarray(held, bool)
+    label = np.full(graph.shape[0], -1)
+    n = 0
+    if held.any():
+        n, lab = connected_components(graph[held][:, held], directed=False)
+        label[held] = lab
+    for k, r in enumerate(r for r in rings if len(r)):
+        label[np.asarray(r, dtype=int)] = n + k
+    return label
+
+
+def _strip_target(graph: sp.csr_matrix, start: np.ndarray, anchor: np.ndarray, others: np.ndarray,
+                  leads: np.ndarray, avoid: int):
+    """Where a strip from the faces ``start`` goes: (target face, Dijkstra predecessors) or
+    None.  Targets: anchor faces (``anchor`` >= 0) and ``others`` (m,) bool, other clutches'
+    strips (``leads``: the anchor each leads to), a strip preferred when less than
+    STRIP_PREFERENCE as far as the nearest anchor.  Never anchor ``avoid`` (where the same
+    clutch's other end went) nor a strip leading to it, and the path does not cross them
+    (the first end's own strip included) -- unless nothing else is reachable."""
+    for skip in ((avoid,) if avoid >= 0 else ()) + (None,):
+        g, banned = graph, np.zeros(len(anchor), bool)
+        if skip is not None:  # the avoided anchor's faces and strips out of the graph (the ends kept)
+            banned = (anchor == skip) | (leads == skip)
+            banned[start] = False
+            keep = sp.diags((~banned).astype(float))
+            g = (keep @ graph @ keep).tocsr()
+            g.eliminate_zeros()
+        dist, pred = dijkstra(g, indices=start, min_only=True, return_predecessors=True)[:2]
+        ok = np.isfinite(dist) & ~banned
+        to_anchor = np.flatnonzero((anchor >= 0) & ok)
+        to_strip = np.flatnonzero(others & (anchor < 0) & ok)
+        if not len(to_anchor) and not len(to_strip):
+            continue
+        a = to_anchor[np.argmin(dist[to_anchor])] if len(to_anchor) else None
+        b = to_strip[np.argmin(dist[to_strip])] if len(to_strip) else None
+        # another clutch's (anchored) strip only when much nearer than the limb or the ring
+        f = int(b if a is None or (b is not None and dist[b] < STRIP_PREFERENCE * dist[a]) else a)
+        return f, pred
+    return None
 
 
 def anchor_rings(garment) -> tuple[list[np.ndarray], np.ndarray]:
