@@ -228,6 +228,28 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
     assert rc == 0, err
     assert {p: p.stat().st_mtime_ns for p in rep.glob("runs/*/checkpoint.npz")} == stamp
     assert (rep / "evaluations.json").read_text() == evals
+    # a kept experiment whose stored manual baseline is not the one today's rule draws (an
+    # older rule's) gets today's evaluated; here today's was evaluated before, so the
+    # evaluation comes back from the cache and equals the original
+    from kgarment.reproduce.catalog import RESOLUTIONS
+    from kgarment.reproduce.evaluate import EvaluationCache
+    from kgarment.reproduce.experiments import BY_NAME
+    from kgarment.reproduce.pipeline import refresh_manual
+
+    entry = json.loads((rep / "data.json").read_text())["experiments"]["arm_extension"]
+    before = json.dumps(entry["evaluations"]["manual"], sort_keys=True)
+    npz = rep / "designs" / "arm_extension.npz"
+    with np.load(npz) as z:
+        stored = {k: z[k] for k in z.files}
+    old_rule = stored["manual"].copy()
+    old_rule[np.flatnonzero(old_rule)[:5]] = False
+    np.savez_compressed(npz, **{**stored, "manual": old_rule})
+    args = (BY_NAME["arm_extension"], RESOLUTIONS["tiny"], rep, EvaluationCache(rep / "evaluations.json"), "cpu")
+    assert refresh_manual(entry, *args)
+    with np.load(npz) as z:
+        np.testing.assert_array_equal(z["manual"], stored["manual"])
+    assert json.dumps(entry["evaluations"]["manual"], sort_keys=True) == before
+    assert not refresh_manual(entry, *args)  # now the same: nothing to do
 
 
 def test_a_reproduction_folder_keeps_only_its_own_resolution_and_preset(tmp_path):
