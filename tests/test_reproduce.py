@@ -209,12 +209,23 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
                 for state in ("on", "off"):
                     assert ends[(g["motion"], state)] == pytest.approx(g[f"energy_{state}_J"], rel=MULTISTABLE)
     assert "peak_force" in summary["targets"]
+    # the paper's force sensor: per motion of the two-motion sleeve, ours and the manual
+    # design's largest clutch tension over the motion, as in the force over the motion
+    sensor = {r["motion"]: r for r in summary["sensor"] if r["experiment"] == "sleeve_two_motions"}
+    sleeve = doc["experiments"]["sleeve_two_motions"]
+    assert set(sensor) == set(sleeve["motions"])
+    for m, r in sensor.items():
+        ours = max(f["tension_N"][c] for f in sleeve["path"]["ours"]["frames"] for c in f["tension_N"]
+                   if f["motion"] == m and f["state"] == "on")
+        assert r["ours_N"] == pytest.approx(ours, rel=1e-12)
+        assert r["ratio"] is None or r["ratio"] == pytest.approx(r["ours_N"] / r["manual_N"])
     md = (rep / "report.md").read_text()
     assert "Force over the motion" in md
     page = (rep / "report.html").read_text()
     assert "Clutch loads" in md and "`every_clutch_loaded`" in md
     for heading in ("Targets", "Single-motion designs", "Multi-motion designs", "Cross-evaluation",
-                    "Emergent properties", "Performance", "Compared with the paper"):
+                    "Emergent properties", "Performance", "Compared with the paper",
+                    "Forces against the manual design"):
         assert f"## {heading}" in md and heading in page
     # the HTML is self-contained (every image embedded); the Markdown links existing files
     srcs = re.findall(r'<img[^>]*\bsrc="([^"]+)"', page)

@@ -14,7 +14,7 @@ def cmd_reproduce(args) -> int:
 
     from kgarment.io import check_output_folder
     from kgarment.reproduce.catalog import RESOLUTIONS, select
-    from kgarment.reproduce.pipeline import reproduce
+    from kgarment.reproduce.pipeline import reproduce, rewrite_summary
     from kgarment.reproduce.report import write_report
 
     exps = select(args.experiments)
@@ -25,6 +25,7 @@ def cmd_reproduce(args) -> int:
         if not (out / DATA).is_file():
             raise KgarmentError(f"{out} has no data.json; run kgarment reproduce --out {out} first")
         md, page = write_report(out)
+        rewrite_summary(out)  # results.json from the same data.json as the report
         print(f"report: {page} (Markdown: {md})")
         return 0
     res = RESOLUTIONS[args.resolution]

@@ -46,6 +46,7 @@ from kgarment.reproduce.experiments import (
 )
 from kgarment.reproduce.figures import force_figure
 from kgarment.reproduce.targets import target_flags
+from kgarment.reproduce.validation import sensor_rows
 
 log = logging.getLogger(__name__)
 PLAN_CLUTCHES = 3  # multi-motion experiments with at most this many clutches get their clutch-set table
@@ -302,6 +303,11 @@ def _write(out: Path, doc: dict) -> None:
     atomic_write_text(out / "results.json", json_text(summary(doc)))  # strict JSON: NaN -> null
 
 
+def rewrite_summary(out: Path) -> Path:
+    """``out/results.json`` written again from ``out/data.json`` (``--report-only``)."""
+    return atomic_write_text(Path(out) / "results.json", json_text(summary(json.loads((Path(out) / DATA).read_text()))))
+
+
 def previous_results(out: Path, res, overrides: dict | None) -> dict:
     """{name: entry} of ``out/data.json``'s experiments, when they were
     made at resolution ``res`` with the material preset and clutch model that ``overrides``
@@ -357,8 +363,9 @@ def _design_summary(ev: dict) -> dict:
 def summary(doc: dict) -> dict:
     """The machine-readable results (``results.json``): per experiment our design and the
     manual baseline (rho per motion ON/OFF, parts counting clutch links, clutch ends on
-    reinforcement, per clutch share and tension per motion), and the targets met."""
+    reinforcement, per clutch share and tension per motion), the targets met, and the
+    tensions at the paper's force sensor (:func:`kgarment.reproduce.validation.sensor_rows`)."""
     exps = {name: {kind: _design_summary(e["evaluations"][kind]) for kind in ("ours", "manual")
                    if kind in e["evaluations"]} for name, e in doc["experiments"].items()}
     return {"resolution": doc["resolution"]["name"], "preset": doc.get("preset", "paper"), "experiments": exps,
-            "targets": target_flags(doc)}
+            "targets": target_flags(doc), "sensor": sensor_rows(doc)}

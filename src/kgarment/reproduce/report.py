@@ -27,6 +27,7 @@ from kgarment.reproduce.text import (
     strips_note,
     targets,
 )
+from kgarment.reproduce.validation import validation_lines
 
 log = logging.getLogger(__name__)
 
@@ -217,6 +218,8 @@ def build_markdown(doc: dict, figures: dict) -> str:
                     cells.append(_f(m["rho_on"][row][c]) + (f" ({p:.2f})" if p is not None else ""))
                 rows.append([row, *cells])
             md += [f"**{m['problem']}**", ""] + md_table(["evaluated on \\ optimised for", *cols], rows)
+    if validation := validation_lines(doc):
+        md += ["## Forces against the manual design (the paper's physical validation)", ""] + validation
     md += ["## Emergent properties", ""]
     if "emergent" in figures:
         md += [f"![our design against the compliance and manual baselines]({figures['emergent']})", ""]
