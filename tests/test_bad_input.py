@@ -128,6 +128,10 @@ def test_outputs_checked_before_the_work(tmp_path, monkeypatch):
         (["clutches", "suggest", "--out", "afile"], "--out afile is a file"),
         (["reproduce", "--out", "afile"], "--out afile is a file"),
         (["design", "--out", "afile"], "afile is a file, not a folder"),
+        (["evaluate", "norun", "--json", "afile"], "--json afile exists; use --force to overwrite it"),
+        (["evaluate", "norun", "--plot", "loads.txt"], "--plot loads.txt: give a .png or .pdf or .svg file"),
+        (["evaluate", "norun", "--plot", "loads.png", "--no-loads"], "--no-loads leaves out"),
+        (["evaluate", "norun", "--plot", "x.svg", "--json", "x.svg"], "name the same file"),
     ]
     for argv, message in cases:
         rc, _, err = run_cli(argv)
@@ -194,6 +198,23 @@ def test_replace_folder_swaps_only_when_filled(tmp_path):
     with pytest.raises(KgarmentError, match="use --force"):
         check_replaceable(tmp_path / "run", force=False)
     check_replaceable(tmp_path / "run", force=True)  # marked: replaceable
+    # never by a folder of another kind: cut files do not replace a design run, nor the reverse
+    with pytest.raises(KgarmentError, match="is a kgarment run folder, not a fabrication folder"):
+        check_replaceable(tmp_path / "run", force=True, kind="fabrication")
+    with pytest.raises(KgarmentError, match="another kind"):
+        replace_folder(tmp_path / "run", lambda tmp: None, "fabrication")
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == [MARKER, "new.txt"]
+
+
+def test_a_run_folders_own_files_are_never_overwritten(tmp_path, monkeypatch):
+    """--json naming a file of a run folder (its problem.toml) is refused even with --force;
+    the run stays usable."""
+    monkeypatch.chdir(tmp_path)
+    before = _old_run(tmp_path / "run")
+    for extra in ([], ["--force"]):
+        rc, _, err = run_cli(["evaluate", "norun", "--json", "run/problem.toml", *extra])
+        assert_one_line(rc, err, "is a file of the kgarment run folder")
+    assert {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()} == before
 
 
 @pytest.mark.parametrize("content", [b"", b"PK\x03\x04 truncated", np.random.default_rng(0).bytes(300)],

@@ -130,20 +130,35 @@ def owned(path) -> bool:
     return path.is_dir() and ((path / MARKER).is_file() or all((path / f).is_file() for f in RUN_FILES))
 
 
+def folder_kind(path) -> str | None:
+    """What kind of kgarment folder ``path`` is (its marker's ``kind``: run, fabrication,
+    sweep, ...; "run" for a run folder written before the marker existed), None if none."""
+    path = Path(path)
+    try:
+        return str(json.loads((path / MARKER).read_text()).get("kind"))
+    except (OSError, ValueError, AttributeError):
+        return "run" if all((path / f).is_file() for f in RUN_FILES) else None
+
+
 def _empty(path: Path) -> bool:
     return path.is_dir() and not any(path.iterdir())
 
 
-def check_replaceable(path, force: bool, hint: str = "use --force to replace it") -> Path:
+def check_replaceable(path, force: bool, hint: str = "use --force to replace it", kind: str = "run") -> Path:
     """Check, before any work, that the output folder ``path`` can be written: missing, empty,
-    or (with ``force``) a folder kgarment created.  Anything else -> KgarmentError, nothing
-    touched: a file, a folder of other files (kgarment never deletes what it did not create),
-    a parent that is not a writable folder.  ``hint``: what to do about an existing one."""
+    or (with ``force``) a folder kgarment created of the same ``kind``.  Anything else ->
+    KgarmentError, nothing touched: a file, a folder of other files (kgarment never deletes
+    what it did not create), a kgarment folder of another kind (a design run is never
+    replaced by cut files, nor the other way round), a parent that is not a writable folder.
+    ``hint``: what to do about an existing one."""
     path = check_output_folder(path, "output folder")
     if path.is_dir() and not _empty(path):
         if not owned(path):
             raise KgarmentError(f"{path} exists and holds files kgarment did not write; it is never replaced, "
                                 "give another output folder")
+        if (other := folder_kind(path)) != kind:
+            raise KgarmentError(f"{path} is a kgarment {other} folder, not a {kind} folder; it is never replaced "
+                                "by one, give another output folder")
         if not force:
             raise KgarmentError(f"output folder {path} exists; {hint}")
     return path
@@ -165,9 +180,10 @@ def replace_folder(path, fill, kind: str) -> Path:
         raise
     old = None
     if path.exists():
-        if not (_empty(path) or owned(path)):  # checked before the work; checked again now
+        if not (_empty(path) or (owned(path) and folder_kind(path) == kind)):  # checked before the work; again now
             shutil.rmtree(tmp, ignore_errors=True)
-            raise KgarmentError(f"{path} holds files kgarment did not write; it is never replaced")
+            raise KgarmentError(f"{path} holds files kgarment did not write or is another kind of kgarment "
+                                "folder; it is never replaced")
         old = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.old-"))
         os.replace(path, old / path.name)
     os.replace(tmp, path)
@@ -186,12 +202,23 @@ def check_output_folder(path, flag: str = "--out") -> Path:
     return path
 
 
-def check_output_file(path, flag: str) -> Path:
+def check_output_file(path, flag: str, force: bool = False, suffixes: tuple[str, ...] = ()) -> Path:
     """Check, before any work, that a file ``path`` (named by ``flag``, e.g. --json) can be
-    written: not a folder, its nearest existing parent a writable folder."""
+    written: not a folder, one of ``suffixes`` (e.g. (".png", ".pdf") when given), its nearest
+    existing parent a writable folder, and not an existing file unless ``force`` -- never an
+    existing file of a folder kgarment made (a run's ``problem.toml`` or ``metrics.json``)."""
     path = Path(path)
     if path.is_dir():
         raise KgarmentError(f"{flag} {path} is a folder; give a file name")
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise KgarmentError(f"{flag} {path}: give a {' or '.join(suffixes)} file")
+    if path.exists():
+        home = next((q for q in path.resolve().parents if owned(q)), None)
+        if home is not None:
+            raise KgarmentError(f"{flag} {path} is a file of the kgarment {folder_kind(home)} folder {home}; "
+                                "it is never overwritten, give another file")
+        if not force:
+            raise KgarmentError(f"{flag} {path} exists; use --force to overwrite it")
     _check_parent(path, path.parents, flag)
     return path
 

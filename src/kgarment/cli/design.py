@@ -26,6 +26,7 @@ from kgarment.errors import KgarmentError
 
 DEMO_EXAMPLE = "shirt_three_motions"
 SIZES_EXAMPLE = "shirt_sizes"
+PLOT_SUFFIXES = (".png", ".pdf", ".svg")  # what --plot can draw into
 
 
 def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: bool, evaluate: bool = True) -> int:
@@ -154,9 +155,13 @@ def cmd_evaluate(args) -> int:
     from kgarment.io import atomic_write_text, check_output_file, json_text
     from kgarment.problem import load_problem, override
 
-    for flag, path in (("--json", args.json), ("--plot", args.plot)):
+    if args.plot and args.no_loads:
+        raise KgarmentError("--plot draws the clutch loads, which --no-loads leaves out; give one of them")
+    if args.plot and args.json and Path(args.plot).resolve() == Path(args.json).resolve():
+        raise KgarmentError(f"--json and --plot name the same file {args.json}; give two files")
+    for flag, path, suffixes in (("--json", args.json, ()), ("--plot", args.plot, PLOT_SUFFIXES)):
         if path:
-            check_output_file(path, flag)  # before the evaluation, not after it
+            check_output_file(path, flag, force=args.force, suffixes=suffixes)  # before the evaluation
     src = parse_design_source(args.design, run_required=True)
     p = override(load_problem(src.run / "problem.toml"), motions=args.motion, clutch_model=args.clutch_model,
                  holding_force=args.holding_force, buckle=args.buckle, friction=args.skin_friction)
@@ -274,7 +279,10 @@ def add_parsers(sub) -> None:
     sp.add_argument("design", help="run folder (its final design) or RUN@ITERATION")
     sp.add_argument("--motion", action="append", help="motion to evaluate on (repeatable); default: the run's")
     sp.add_argument("--json", help="also write the results as JSON to this file")
-    sp.add_argument("--plot", help="also draw the clutch loads (share and tension per motion) into this PNG")
+    sp.add_argument("--plot", help="also draw the clutch loads (share and tension per motion) into this PNG "
+                    "(or .pdf, .svg)")
+    sp.add_argument("--force", action="store_true", help="overwrite an existing --json or --plot file (never a "
+                    "file of a run folder)")
     sp.add_argument("--no-loads", action="store_true", help="skip the per-clutch loads (one more solve per "
                     "clutch and motion)")
     sp.add_argument("--path", type=FRAMES, metavar="K", help="also the force over the motion: K quasi-static frames "

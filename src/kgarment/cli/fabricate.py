@@ -53,7 +53,7 @@ def cmd_fabricate(args) -> int:
         allowance=args.allowance)
     p = load_problem(pfile)
     out = Path(args.out) if args.out else default_out
-    check_replaceable(out, args.force)  # fail before the slow part
+    check_replaceable(out, args.force, kind="fabrication")  # fail before the slow part
     t0 = time.time()
     body = build_body(p)
     garment = build_garment(p, body)
