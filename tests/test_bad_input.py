@@ -27,6 +27,12 @@ def assert_one_line(rc, err, message):
 
 # (problem file text, message); each is rendered with `kgarment render p.toml`
 PROBLEMS = [
+    ("design = 5\n", "[design] must be a table of fields"),
+    ("materials = 5\n", "[materials] must be a table of fields"),
+    ('[motions]\nuse = ["m"]\n[motions.define.m]\nkeyframes = [[{bone = "upperarm01.R", axis = "x", degrees = 30}], 5]\n',
+     "keyframes a list of such lists"),
+    ('[body]\nphenotypes = [{name = "all"}, {name = "L", weight = 0.8}]\n', "name = 'all'; allowed"),
+    ('[body]\nphenotypes = [{name = ".."}, {name = "L", weight = 0.8}]\n', "not only dots"),
     ('[motions]\nuse = ["arm_flexion.right"]\n[motions.activation]\n"arm_flexion.right" = []\n',
      "[motions.activation] arm_flexion.right switches no clutch on (an empty set)"),
     ('[motions]\nuse = ["arm_flexion.right"]\n[motions.activation]\n"arm_flexion.right" = { "elbow_outer.R" = 1.5 }\n',
@@ -105,6 +111,9 @@ FLAGS = [
     (["plan", "run", "--exhaustive", "11"], "argument --exhaustive: 11 is outside [0, 10]"),
     (["evaluate", "run", "--holding-force", "-1"], "argument --holding-force: -1 is outside"),
     (["design", "--clutch-model", "glued"], "argument --clutch-model: invalid choice: 'glued'"),
+    (["simulate", "--device", "nonsense"], "argument --device: 'nonsense' is not a torch device"),
+    (["reproduce", "--experiments", ""], "names no experiment"),
+    (["reproduce", "--experiments", " , "], "names no experiment"),
 ]
 
 
@@ -204,6 +213,16 @@ def test_replace_folder_swaps_only_when_filled(tmp_path):
     with pytest.raises(KgarmentError, match="another kind"):
         replace_folder(tmp_path / "run", lambda tmp: None, "fabrication")
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == [MARKER, "new.txt"]
+
+
+def test_clutches_show_never_rewrites_a_runs_clutch_file(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    before = _old_run(tmp_path / "run")
+    (tmp_path / "run" / "clutches.toml").write_text("old clutches")
+    before["clutches.toml"] = b"old clutches"
+    rc, _, err = run_cli(["clutches", "show", "--out", "run", "--force"])
+    assert_one_line(rc, err, "is a file of the kgarment run folder")
+    assert {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()} == before
 
 
 def test_a_run_folders_own_files_are_never_overwritten(tmp_path, monkeypatch):

@@ -103,6 +103,15 @@ def test_resume_from_the_command_line_and_evaluate(tmp_path, anny_body):
     again = json.loads((tmp_path / "f.json").read_text())
     final = json.loads((tmp_path / "whole" / "final" / "evaluation.json").read_text())
     assert again["rows"] == final["rows"] and again["clutches"] == final["clutches"]
+    # a run folder can be moved: its problem.toml finds its clutch file beside it
+    import shutil
+
+    shutil.move(tmp_path / "whole", tmp_path / "moved")
+    rc, _, err = run_cli(["evaluate", "moved", "--json", "m.json"], tmp_path)
+    assert rc == 0, err
+    moved = json.loads((tmp_path / "m.json").read_text())
+    assert moved["rows"] == final["rows"] and moved["clutches"] == final["clutches"]
+    shutil.move(tmp_path / "moved", tmp_path / "whole")
     rc, _, err = run_cli(["evaluate", "nowhere"], tmp_path)
     assert rc == 2 and "not a run folder" in err
     # the control table of the same design: its all-ON and all-OFF energies are the evaluation's

@@ -231,6 +231,12 @@ def _check_parent(path: Path, candidates, flag: str) -> None:
         raise KgarmentError(f"{flag} {path}: {parent} is a file, not a folder")
     if not os.access(parent, os.W_OK):
         raise KgarmentError(f"{flag} {path}: cannot write into {parent} (permission denied)")
+    try:  # what access() cannot tell (root, a read-only or special file system): a file made and removed
+        fd, probe = tempfile.mkstemp(dir=parent, prefix=".kgarment-probe-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise KgarmentError(f"{flag} {path}: cannot write into {parent} ({exc.strerror or exc})") from None
 
 
 def load_npz(path, what: str, keys=()) -> dict:

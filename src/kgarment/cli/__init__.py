@@ -61,6 +61,11 @@ def main(argv=None) -> int:
         return 2
     except BrokenPipeError:  # output piped into head and the like
         return 0
+    except OSError as exc:
+        if exc.filename is None:  # not about a file the user named: a defect, with its traceback
+            raise
+        print(f"kgarment: error: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("kgarment: interrupted", file=sys.stderr)
         return 130

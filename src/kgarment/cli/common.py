@@ -56,8 +56,31 @@ def add_problem(sp, help: str = DEFAULT_PROBLEM_HELP) -> None:
     sp.add_argument("problem", nargs="?", help=help)
 
 
+def device(text: str) -> str:
+    """A torch device this machine has: cpu, cuda, cuda:N, mps (checked before any work)."""
+    if text == "cpu":
+        return text
+    import torch
+
+    try:
+        dev = torch.device(text)
+    except (RuntimeError, ValueError):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a torch device; allowed: cpu, cuda, cuda:N, mps") from None
+    if dev.type == "cuda" and (not torch.cuda.is_available()
+                               or (dev.index is not None and dev.index >= torch.cuda.device_count())):
+        n = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        raise argparse.ArgumentTypeError(f"{text}: this machine has {n} CUDA device(s) usable by torch"
+                                         + ("" if n else "; use cpu"))
+    if dev.type == "mps" and not torch.backends.mps.is_available():
+        raise argparse.ArgumentTypeError(f"{text}: no MPS device here; use cpu")
+    if dev.type not in ("cpu", "cuda", "mps"):
+        raise argparse.ArgumentTypeError(f"{text}: kgarment runs on cpu, cuda or mps")
+    return text
+
+
 def add_device(sp) -> None:
-    sp.add_argument("--device", default="cpu", help="torch device for numerical work (default cpu)")
+    sp.add_argument("--device", default="cpu", type=device, help="torch device for numerical work: cpu (default), "
+                    "cuda, cuda:N or mps")
 
 
 def add_overrides(sp, *, motion: bool = True, garment: bool = True, subdivision: bool = True,

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from kgarment.cli.common import add_device, add_overrides, add_problem, integer, load, number
-from kgarment.errors import KgarmentError
 
 
 def cmd_motions(args) -> int:
@@ -66,12 +65,14 @@ def cmd_render(args) -> int:
 def cmd_clutches(args) -> int:
     from kgarment.clutch import build_clutch, save_clutches
     from kgarment.clutch.suggest import suggest_clutches
-    from kgarment.io import check_output_folder
+    from kgarment.io import check_output_file, check_output_folder
     from kgarment.problem import build_body, build_clutches, build_garment
     from kgarment.render import render_scene
 
     p = load(args)
     out = check_output_folder(args.out)
+    name = "suggested" if args.action == "suggest" else "clutches"
+    cfile = check_output_file(out / f"{name}.toml", "--out", force=args.force)  # never a run's own clutch file
     if not args.quiet:
         print(p.describe())
     body = build_body(p)
@@ -79,14 +80,9 @@ def cmd_clutches(args) -> int:
     if args.action == "suggest":
         specs = suggest_clutches(garment, motions=p.motions, count=args.count, length=args.length)
         strips = [build_clutch(s, garment.rest_vertices, garment.faces) for s in specs]
-        name = "suggested"
     else:
         strips = build_clutches(p, body, garment)
         specs = strips
-        name = "clutches"
-    cfile = out / f"{name}.toml"
-    if cfile.exists() and not args.force:
-        raise KgarmentError(f"{cfile} exists; use --force to overwrite it")
     out.mkdir(parents=True, exist_ok=True)
     save_clutches(cfile, specs, garment.rest_vertices, garment.faces)
     png = render_scene(out / f"{name}.png", body.rest_vertices, body.faces, garment.rest_vertices, garment.faces,

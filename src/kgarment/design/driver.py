@@ -128,11 +128,12 @@ def write_inputs(run: Path, problem: Problem, body: Body, garment: Garment, spec
                  home: Path | None = None) -> None:
     """problem.toml (+ problem.txt, problem.source.toml), clutches.toml and, for a garment
     given by the caller, attachments.npz of a new run folder ``run`` (whose files will live
-    in ``home``, default ``run``: problem.toml refers to its clutch file there)."""
+    in ``home``, default ``run``; problem.toml refers to its clutch file by a path relative to
+    itself, so the run folder can be moved or copied)."""
     if specs:
         marks = body_landmarks(body) if body.rigged else None
         save_clutches(run / "clutches.toml", specs, garment.rest_vertices, garment.faces, landmarks=marks)
-    doc = problem_to_dict(problem, Path(home or run) / "clutches.toml" if specs else None)
+    doc = problem_to_dict(problem, Path("clutches.toml") if specs else None)  # beside it: the folder can move
     if not specs:
         doc.setdefault("clutches", {})["clutch"] = []  # no clutches, not the garment's default layout
     if problem.source and Path(problem.source).is_file():

@@ -56,6 +56,9 @@ def load_problem(path) -> Problem:
 def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None) -> Problem:
     """Validate a parsed TOML dict into a :class:`Problem` (errors name the field)."""
     check_keys("problem", data, SECTIONS)
+    for name in SECTIONS:  # each section a table (its fields are checked where it is read)
+        if name in data and not isinstance(data[name], dict):
+            raise KgarmentError(f"[{name}] must be a table of fields, not {data[name]!r}")
     body = _body(data.get("body", {}), base)
     user, names = _motions(data.get("motions", {}), body)
     garment = _garment(data.get("garment", {}), base)
@@ -84,7 +87,9 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
 
 
 def check_keys(section_name: str, d: dict, allowed) -> None:
-    """Refuse a table with a field not in ``allowed``."""
+    """Refuse a table with a field not in ``allowed`` (and a value that is not a table)."""
+    if not isinstance(d, dict):
+        raise KgarmentError(f"[{section_name}] must be a table of fields ({', '.join(allowed)}), not {d!r}")
     bad = set(d) - set(allowed)
     if bad:
         raise KgarmentError(f"[{section_name}]: unknown field {sorted(bad)[0]!r}; allowed: {', '.join(allowed)}")
@@ -148,6 +153,9 @@ def _body(b: dict, base: Path) -> BodySpec:
                     _path(base, b["rig"], "body.rig") if "rig" in b else None, meshes)
 
 
+RESERVED_BODY_NAMES = ("all",)  # kgarment sizes names its every-wearer run "all"
+
+
 def _phenotypes(v) -> tuple[tuple[str, Phenotype], ...]:
     """[body] phenotypes = [{name = "S", weight = 0.3, ...}, ...]: two or more wearers, each a
     name (letters, digits, _ . -; default body1, body2, ...) and phenotype fields."""
@@ -157,9 +165,11 @@ def _phenotypes(v) -> tuple[tuple[str, Phenotype], ...]:
     out = []
     for i, d in enumerate(v):
         name = d.get("name", f"body{i + 1}")
-        if not isinstance(name, str) or not C.BODY_NAME.fullmatch(name):
+        if not isinstance(name, str) or not C.BODY_NAME.fullmatch(name) or set(name) == {"."} \
+                or name in RESERVED_BODY_NAMES:
             raise KgarmentError(f"[body] phenotypes[{i}]: name = {name!r}; allowed: letters, digits, _ . - "
-                                f"(at most 32)")
+                                f"(at most 32; not only dots, not {' or '.join(map(repr, RESERVED_BODY_NAMES))}: "
+                                "kgarment sizes' own run folders)")
         try:
             out.append((name, Phenotype.from_dict({k: x for k, x in d.items() if k != "name"})))
         except KgarmentError as exc:
@@ -204,6 +214,10 @@ def _user_motion(name: str, d: dict) -> Motion:
     if ("rotations" in d) == ("keyframes" in d):
         raise KgarmentError(f"[{where}]: give either rotations or keyframes")
     frames = [d["rotations"]] if "rotations" in d else d["keyframes"]
+    if not isinstance(frames, list) or not all(isinstance(kf, list) and all(isinstance(r, dict) for r in kf)
+                                               for kf in frames):
+        raise KgarmentError(f"[{where}]: rotations must be a list of tables, keyframes a list of such lists, "
+                            "e.g. rotations = [{bone = \"upperarm01.R\", axis = \"x\", degrees = 30}]")
     kfs = tuple(tuple(_rotation(r, where) for r in kf) for kf in frames)
     if not kfs or not all(kfs):
         raise KgarmentError(f"[{where}]: a motion needs at least one rotation")
@@ -399,7 +413,8 @@ def _clutches(c: dict, base: Path) -> ClutchesSpec:
 
 def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
     """The resolved problem as a TOML-ready dict (paths absolute) that ``parse_problem``
-    reads back to an equal problem; clutches are referenced by ``clutch_file`` when given."""
+    reads back to an equal problem; clutches are referenced by ``clutch_file`` when given
+    (a relative one as it is: relative to the problem file's folder)."""
     b = problem.body
     body: dict = {"model": b.model}
     if b.phenotypes:
@@ -429,7 +444,8 @@ def problem_to_dict(problem: Problem, clutch_file: Path | None = None) -> dict:
     out = {"body": body, "motions": motions, "garment": garment, "design": problem.design.flat(),
            "solver": asdict(problem.solver), "materials": _materials(problem.materials)}
     if clutch_file is not None:
-        out["clutches"] = {"file": str(Path(clutch_file).resolve())}
+        cf = Path(clutch_file)  # a relative one is read from beside the problem file (a run folder's own)
+        out["clutches"] = {"file": str(cf if not cf.is_absolute() else cf.resolve())}
     hw = problem.clutch_spec().hardware.to_dict()
     if hw:  # written only when not the default, so earlier runs' files and hashes stay as they were
         out.setdefault("clutches", {}).update(hw)

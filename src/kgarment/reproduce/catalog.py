@@ -92,9 +92,12 @@ MULTI_OF_GROUP = {"sleeve": "sleeve_two_motions", "shirt": "shirt_three_motions"
 
 def select(names: str | None) -> list[Experiment]:
     """Experiments by comma-separated names (None: all), in the canonical order."""
-    if not names:
+    if names is None:
         return list(EXPERIMENTS)
     asked = [n.strip() for n in names.split(",") if n.strip()]
+    if not asked:
+        raise KgarmentError(f"--experiments {names!r} names no experiment; known: {', '.join(BY_NAME)} "
+                            "(leave --experiments out for all)")
     unknown = [n for n in asked if n not in BY_NAME]
     if unknown:
         raise KgarmentError(f"unknown experiment {unknown[0]!r}; known: {', '.join(BY_NAME)}")
