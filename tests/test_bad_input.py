@@ -114,6 +114,8 @@ FLAGS = [
     (["simulate", "--device", "nonsense"], "argument --device: 'nonsense' is not a torch device"),
     (["reproduce", "--experiments", ""], "names no experiment"),
     (["reproduce", "--experiments", " , "], "names no experiment"),
+    (["design", "--resume", "somerun", "--max-iterations", "7"], "--max-iterations would be ignored"),
+    (["design", "p.toml", "--resume", "somerun"], "a problem file would be ignored"),
 ]
 
 

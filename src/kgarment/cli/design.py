@@ -27,6 +27,7 @@ from kgarment.errors import KgarmentError
 DEMO_EXAMPLE = "shirt_three_motions"
 SIZES_EXAMPLE = "shirt_sizes"
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")  # what --plot can draw into
+DESIGN_OUT = "runs/design"  # kgarment design --out's default
 
 
 def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: bool, evaluate: bool = True) -> int:
@@ -81,7 +82,20 @@ def print_summary(dr, seconds: float) -> None:
               f"kgarment fabricate {dr.run}")
 
 
+# what a new run takes and a resumed one cannot: it continues with its own problem.toml
+RESUME_IGNORES = ("problem", "motion", "garment", "subdivision", "preset", "solver", "tol", "max_iterations",
+                  "refine", "clutch_model", "holding_force", "buckle", "skin_friction", "force")
+
+
 def cmd_design(args) -> int:
+    if args.resume:
+        given = [n for n in RESUME_IGNORES if getattr(args, n, None) not in (None, False)]
+        if args.out != DESIGN_OUT:
+            given.insert(0, "out")
+        if given:
+            flag = "a problem file" if given[0] == "problem" else "--" + given[0].replace("_", "-")
+            raise KgarmentError(f"--resume {args.resume} continues the run with its own problem.toml and folder; "
+                                f"{flag} would be ignored: leave it out, or start a new run (--out, --force)")
     problem = None if args.resume else load(args)
     return run_design(problem, args.resume or args.out, resume=bool(args.resume), force=args.force,
                       device=args.device, quiet=args.quiet, evaluate=not args.no_evaluation)
@@ -94,6 +108,13 @@ def cmd_demo(args) -> int:
 
     out = Path(args.out)
     status = run_status(out)
+    if status != "new" and not args.force:  # what it holds must be what was asked for
+        held = load_problem(out / "problem.toml")
+        for flag, asked, has in (("--subdivision", args.subdivision, held.garment.subdivision),
+                                 ("--max-iterations", args.max_iterations, held.design.beso.max_iterations)):
+            if asked is not None and asked != has:
+                raise KgarmentError(f"{out} holds a run with {flag} {has}, not {asked}; use --force to replace "
+                                    "it or --out for another folder")
     if status == "finished" and not args.force:
         from kgarment.constants import SIM_MODEL
         from kgarment.design.run import checkpoint_model, other_model
@@ -253,8 +274,9 @@ def add_parsers(sub) -> None:
     add_problem(sp)
     add_device(sp)
     add_overrides(sp, max_iterations=True, clutch=True)
-    sp.add_argument("--out", default="runs/design", help="run folder (default runs/design)")
-    sp.add_argument("--resume", metavar="RUN", help="continue a run folder where it stopped")
+    sp.add_argument("--out", default=DESIGN_OUT, help=f"run folder (default {DESIGN_OUT})")
+    sp.add_argument("--resume", metavar="RUN", help="continue a run folder where it stopped (with its own "
+                    "problem.toml: no problem file or problem flags)")
     sp.add_argument("--force", action="store_true", help="replace an existing run folder")
     sp.add_argument("--no-evaluation", action="store_true", help="skip the final design's evaluation (rho from two "
                     "starts and the load of every clutch: one more solve per clutch and motion); "
