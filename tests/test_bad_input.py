@@ -227,6 +227,22 @@ def test_clutches_show_never_rewrites_a_runs_clutch_file(tmp_path, monkeypatch):
     assert {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()} == before
 
 
+def test_results_are_never_added_to_a_folder_of_another_kind(tmp_path, monkeypatch):
+    """simulate's and reproduce's output folders gain files, so neither goes into a design run;
+    reproduce not into a folder of the user's either."""
+    monkeypatch.chdir(tmp_path)
+    before = _old_run(tmp_path / "run")
+    _foreign_folder(tmp_path / "mine")
+    for argv, message in ((["simulate", "--out", "run"], "is a kgarment run folder, not a simulation folder"),
+                          (["reproduce", "--out", "run"], "is a kgarment run folder, not a reproduction folder"),
+                          (["reproduce", "--out", "run", "--report-only"], "not a reproduction folder"),
+                          (["reproduce", "--out", "mine"], "mine exists and holds files kgarment did not write")):
+        rc, _, err = run_cli(argv)
+        assert_one_line(rc, err, message)
+    assert {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()} == before
+    assert sorted(p.name for p in (tmp_path / "mine").iterdir()) == ["notes.txt", "sub"]
+
+
 def test_a_run_folders_own_files_are_never_overwritten(tmp_path, monkeypatch):
     """--json naming a file of a run folder (its problem.toml) is refused even with --force;
     the run stays usable."""

@@ -202,6 +202,23 @@ def check_output_folder(path, flag: str = "--out") -> Path:
     return path
 
 
+def check_kind(path, kind: str, flag: str = "--out", legacy: tuple[str, ...] | None = None) -> Path:
+    """An output folder that commands of one ``kind`` add files to (simulate's results, a
+    reproduction's experiments): never a kgarment folder of another kind (a design run, cut
+    files); with ``legacy`` (the files such a folder held before markers existed), a
+    non-empty folder without a marker must hold one of them, else it is not kgarment's."""
+    path = check_output_folder(path, flag)
+    if path.is_dir() and not _empty(path):
+        other = folder_kind(path)
+        if other is not None and other != kind:
+            raise KgarmentError(f"{flag} {path} is a kgarment {other} folder, not a {kind} folder; give another "
+                                "output folder")
+        if other is None and legacy is not None and not any((path / f).exists() for f in legacy):
+            raise KgarmentError(f"{flag} {path} exists and holds files kgarment did not write; give another "
+                                "output folder")
+    return path
+
+
 def check_output_file(path, flag: str, force: bool = False, suffixes: tuple[str, ...] = ()) -> Path:
     """Check, before any work, that a file ``path`` (named by ``flag``, e.g. --json) can be
     written: not a folder, one of ``suffixes`` (e.g. (".png", ".pdf") when given), its nearest

@@ -12,13 +12,14 @@ from kgarment.errors import KgarmentError
 def cmd_reproduce(args) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from kgarment.io import check_output_folder
+    from kgarment.io import check_kind
+    from kgarment.reproduce.catalog import DATA as DATA_FILE
     from kgarment.reproduce.catalog import RESOLUTIONS, select
     from kgarment.reproduce.pipeline import reproduce, rewrite_summary
     from kgarment.reproduce.report import write_report
 
     exps = select(args.experiments)
-    out = check_output_folder(args.out)
+    out = check_kind(args.out, "reproduction", legacy=(DATA_FILE, "evaluations.json", "runs"))
     if args.report_only:
         from kgarment.reproduce.catalog import DATA
 

@@ -11,7 +11,7 @@ def cmd_simulate(args) -> int:
 
     from kgarment.design import Evaluator, load_design
     from kgarment.design.report import write_equilibrium
-    from kgarment.io import check_output_folder
+    from kgarment.io import check_kind, mark_folder
     from kgarment.problem import build_body, build_clutches, build_garment
     from kgarment.sim import clutch_tensions
     from kgarment.sim.slip import slides
@@ -19,7 +19,8 @@ def cmd_simulate(args) -> int:
     p = load(args)
     if not args.quiet:
         print(p.describe())
-    out = check_output_folder(args.out)
+    out = check_kind(args.out, "simulation")
+    fresh = not out.exists() or not any(out.iterdir())  # marked below only if kgarment makes it
     motions = list(args.motion or p.motions)
     if any((out / f"{m}.ply").exists() for m in motions) and not args.force:
         raise KgarmentError(f"{out} already holds results; use --force to overwrite them")
@@ -34,6 +35,9 @@ def cmd_simulate(args) -> int:
     print(f"solver: {ev.setup.solver.method}, tolerance {ev.setup.solver.tol:g}, materials {p.materials.preset}, "
           f"clutches {p.clutch_spec().hardware.model}")
     hold = ev.setup.model.holding(g)
+    out.mkdir(parents=True, exist_ok=True)
+    if fresh:
+        mark_folder(out, "simulation")
     for ((m, _), state), r in zip(keyed, results):
         w = ev.setup.wearers.get(m)  # a multi-body problem's: this wearer's body and garment
         on, pose, model = (body, m, ev.setup.model) if w is None else (w.body, w.motion, w.model)
