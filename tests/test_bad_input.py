@@ -28,6 +28,7 @@ def assert_one_line(rc, err, message):
 # (problem file text, message); each is rendered with `kgarment render p.toml`
 PROBLEMS = [
     ("design = 5\n", "[design] must be a table of fields"),
+    ('[garment]\ntemplate = "short_sleeve_shirt"\nattach = ["hem"]\n', "attach is for a garment given by mask"),
     ("materials = 5\n", "[materials] must be a table of fields"),
     ('[motions]\nuse = ["m"]\n[motions.define.m]\nkeyframes = [[{bone = "upperarm01.R", axis = "x", degrees = 30}], 5]\n',
      "keyframes a list of such lists"),
@@ -215,6 +216,18 @@ def test_replace_folder_swaps_only_when_filled(tmp_path):
     with pytest.raises(KgarmentError, match="another kind"):
         replace_folder(tmp_path / "run", lambda tmp: None, "fabrication")
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == [MARKER, "new.txt"]
+
+
+def test_clutches_show_checks_the_clutch_names_a_design_would(tmp_path, monkeypatch, anny_body):
+    monkeypatch.chdir(tmp_path)
+    for text, message in (('[motions]\nuse = ["arms_forward"]\n[motions.activation]\narms_forward = ["nope"]\n',
+                           "arms_forward: unknown clutch 'nope'; the clutches are: upper_back"),
+                          ('[clutches]\nlayout = "shirt"\nmodel = "slip"\nholding_force = {nope = 100}\n',
+                           "holding_force names unknown clutch(es) ['nope']")):
+        (tmp_path / "p.toml").write_text(text)
+        rc, _, err = run_cli(["clutches", "show", "p.toml", "--subdivision", "0", "--out", "cs"])
+        assert_one_line(rc, err, message)
+        assert not (tmp_path / "cs").exists()
 
 
 def test_clutches_show_never_rewrites_a_runs_clutch_file(tmp_path, monkeypatch):

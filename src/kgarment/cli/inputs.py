@@ -83,6 +83,12 @@ def cmd_clutches(args) -> int:
     else:
         strips = build_clutches(p, body, garment)
         specs = strips
+        # the names the problem gives its clutches elsewhere, checked as a design checks them
+        from kgarment.design.setup import activation_vectors
+        from kgarment.problem.build import holding_forces
+
+        activation_vectors(p, [s.name for s in strips])
+        holding_forces(p.clutch_spec().hardware, strips)
     out.mkdir(parents=True, exist_ok=True)
     save_clutches(cfile, specs, garment.rest_vertices, garment.faces)
     png = render_scene(out / f"{name}.png", body.rest_vertices, body.faces, garment.rest_vertices, garment.faces,

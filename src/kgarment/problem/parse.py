@@ -294,6 +294,9 @@ def _garment(g: dict, base: Path) -> GarmentSpec:
     t = g.get("template", "short_sleeve_shirt")
     if t not in template_names():
         raise unknown("garment", t, template_names())
+    if "attach" in g:  # a template glues its own rings
+        raise KgarmentError("[garment] attach is for a garment given by mask; a template's attachment rings are "
+                            "its own (leave attach out, or give mask = FILE)")
     return GarmentSpec(t, None, (), sub)
 
 
