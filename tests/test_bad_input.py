@@ -141,6 +141,8 @@ def test_outputs_checked_before_the_work(tmp_path, monkeypatch):
         (["reproduce", "--out", "afile"], "--out afile is a file"),
         (["design", "--out", "afile"], "afile is a file, not a folder"),
         (["evaluate", "norun", "--json", "afile"], "--json afile exists; use --force to overwrite it"),
+        (["studio", "--runs", "afile"], "--runs afile is a file, not a folder"),
+        (["studio", "--session", "afile/s"], "afile is a file, not a folder"),
         (["evaluate", "norun", "--plot", "loads.txt"], "--plot loads.txt: give a .png or .pdf or .svg file"),
         (["evaluate", "norun", "--plot", "loads.png", "--no-loads"], "--no-loads leaves out"),
         (["evaluate", "norun", "--plot", "x.svg", "--json", "x.svg"], "name the same file"),
@@ -419,3 +421,10 @@ def test_a_run_designed_under_another_simulation_model_is_not_resumed(tmp_path, 
     rc, _, err = run_cli(["design", "--resume", "run"])
     assert_one_line(rc, err, f"was designed with simulation model 1 and this kgarment simulates model {SIM_MODEL}")
     assert (run / "checkpoint.npz").read_bytes() == content
+
+
+def test_loopback_hosts_are_the_machine_itself():
+    from kgarment.cli.studio import is_loopback
+
+    assert all(is_loopback(h) for h in ("localhost", "127.0.0.1", "127.1.2.3", "::1"))
+    assert not any(is_loopback(h) for h in ("0.0.0.0", "::", "192.168.1.5", "example.org", "10.0.0.1"))

@@ -8,15 +8,30 @@ import time
 from kgarment.cli.common import add_device, add_overrides, add_problem, integer, overrides
 from kgarment.errors import KgarmentError
 
-LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` names this machine only (localhost, 127.0.0.0/8, ::1)."""
+    import ipaddress
+
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
 
 
 def cmd_studio(args) -> int:
-    remote = args.host not in LOOPBACK
+    from kgarment.io import check_output_folder
+
+    remote = not is_loopback(args.host)
     if remote and not args.allow_remote:
         raise KgarmentError(f"--host {args.host} would serve the studio to other machines, and the studio has no "
                             "authentication (anyone who reaches it can edit and run designs and write files under "
                             f"{args.runs}); add --allow-remote to do it anyway")
+    check_output_folder(args.runs, "--runs")  # where the page writes: checked before it serves
+    if args.session:
+        check_output_folder(args.session, "--session")
     try:
         import viser  # noqa: F401
     except ImportError:
