@@ -116,6 +116,8 @@ FLAGS = [
     (["reproduce", "--experiments", ""], "names no experiment"),
     (["reproduce", "--experiments", " , "], "names no experiment"),
     (["design", "--resume", "somerun", "--max-iterations", "7"], "--max-iterations would be ignored"),
+    (["clutches", "show", "--count", "5"], "--count and --length are for clutches suggest"),
+    (["motions", "."], "problem file . is a folder; give a .toml file"),
     (["design", "p.toml", "--resume", "somerun"], "a problem file would be ignored"),
 ]
 

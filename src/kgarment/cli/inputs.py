@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from kgarment.cli.common import add_device, add_overrides, add_problem, integer, load, number
+from kgarment.errors import KgarmentError
 
 
 def cmd_motions(args) -> int:
@@ -69,6 +70,8 @@ def cmd_clutches(args) -> int:
     from kgarment.problem import build_body, build_clutches, build_garment
     from kgarment.render import render_scene
 
+    if args.action != "suggest" and (args.count is not None or args.length is not None):
+        raise KgarmentError("--count and --length are for clutches suggest; clutches show draws the problem's own")
     p = load(args)
     out = check_output_folder(args.out)
     name = "suggested" if args.action == "suggest" else "clutches"
@@ -78,7 +81,7 @@ def cmd_clutches(args) -> int:
     body = build_body(p)
     garment = build_garment(p, body)
     if args.action == "suggest":
-        specs = suggest_clutches(garment, motions=p.motions, count=args.count, length=args.length)
+        specs = suggest_clutches(garment, motions=p.motions, count=args.count or 3, length=args.length or 0.10)
         strips = [build_clutch(s, garment.rest_vertices, garment.faces) for s in specs]
     else:
         strips = build_clutches(p, body, garment)
@@ -140,8 +143,8 @@ def add_parsers(sub) -> None:
     add_problem(sp)
     add_device(sp)
     add_overrides(sp)
-    sp.add_argument("--count", type=integer(1, 64), default=3, help="suggest: number of clutches (default 3)")
-    sp.add_argument("--length", type=number(0.01, 1.0), default=0.10, help="suggest: clutch length in metres (default 0.10)")
+    sp.add_argument("--count", type=integer(1, 64), help="suggest: number of clutches (default 3)")
+    sp.add_argument("--length", type=number(0.01, 1.0), help="suggest: clutch length in metres (default 0.10)")
     sp.add_argument("--out", default="runs/clutches", help="output folder (default runs/clutches)")
     sp.add_argument("--force", action="store_true", help="overwrite an existing clutch file")
     sp.add_argument("--no-check", action="store_true", help="suggest: skip simulating whether each suggested "

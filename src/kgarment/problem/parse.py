@@ -45,7 +45,8 @@ def load_problem(path) -> Problem:
     """Read and validate a TOML problem file."""
     path = Path(path)
     if not path.is_file():
-        raise KgarmentError(f"problem file not found: {path}")
+        raise KgarmentError(f"problem file {path} is a folder; give a .toml file" if path.is_dir()
+                            else f"problem file not found: {path}")
     try:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
