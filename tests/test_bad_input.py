@@ -222,6 +222,14 @@ def test_replace_folder_swaps_only_when_filled(tmp_path):
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == [MARKER, "new.txt"]
 
 
+def test_an_empty_design_file_is_one_line(tmp_path, monkeypatch, anny_body):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "empty.txt").write_text("\n")
+    rc, _, err = run_cli(["simulate", "--design", "empty.txt", "--subdivision", "0", "--out", "s"])
+    assert_one_line(rc, err, "cannot read design empty.txt (.npy, .npz or text of 3229 numbers): the file is empty")
+    assert "Warning" not in err
+
+
 def test_clutches_show_checks_the_clutch_names_a_design_would(tmp_path, monkeypatch, anny_body):
     monkeypatch.chdir(tmp_path)
     for text, message in (('[motions]\nuse = ["arms_forward"]\n[motions.activation]\narms_forward = ["nope"]\n',

@@ -266,7 +266,8 @@ def trace_path(
         if clip:
             return stop(s_)
         raise ClutchError(
-            f"{who} leaves the garment after {100 * s_:.1f} cm of {100 * length:.1f} cm"
+            f"{who} leaves the garment after {100 * s_:.1f} cm of {100 * length:.1f} cm; allowed: a clutch that "
+            f"fits on the garment (make it at most {100 * s_:.1f} cm long, or move its start or turn it inwards)"
         )
 
     s = 0.0

@@ -83,6 +83,8 @@ def load_design(source: DesignSource | str | os.PathLike, n_faces: int) -> np.nd
         d = z["design"] if "design" in z else next(iter(z.values()))
     else:
         try:
+            if path.suffix != ".npy" and not path.read_text(errors="replace").strip():
+                raise ValueError("the file is empty")
             d = np.load(path, allow_pickle=False) if path.suffix == ".npy" else np.loadtxt(path)
         except (OSError, ValueError, EOFError) as exc:
             raise KgarmentError(f"cannot read design {path} (.npy, .npz or text of {n_faces} numbers): {exc}") from None

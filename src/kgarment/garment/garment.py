@@ -195,6 +195,8 @@ def load_face_mask(path, n_faces: int) -> np.ndarray:
                     raise KgarmentError(f"face mask {path} holds no array; save the mask as one array")
                 a = z[z.files[0]]
         else:
+            if not path.read_text(errors="replace").strip():
+                raise KgarmentError(f"face mask {path} is empty; it must list the garment's body faces")
             a = np.loadtxt(path, dtype=np.int64, ndmin=1)
     except KgarmentError:
         raise
