@@ -56,6 +56,15 @@ def test_tiny_design_run(tmp_path, anny_body, objective):
     # an existing run is never overwritten without --force
     rc, _, err = run_cli(["design", "p.toml", "--out", "run"], tmp_path)
     assert rc == 2 and "--resume" in err and "--force" in err
+    # resuming the finished run rebuilds its history files from the checkpoint
+    if objective == "active":
+        metrics = (run / "metrics.json").read_text()
+        (run / "designs.npz").write_bytes(b"")
+        (run / "metrics.json").unlink()
+        rc, _, err = run_cli(["design", "--resume", "run"], tmp_path)
+        assert rc == 0, err
+        np.testing.assert_array_equal(load_design_history(run), hist)
+        assert (run / "metrics.json").read_text() == metrics
 
 
 def test_resume_from_the_command_line_and_evaluate(tmp_path, anny_body):

@@ -37,6 +37,7 @@ from kgarment.design.run import (
     check_run_folder,
     load_checkpoint,
     save_checkpoint,
+    write_history,
 )
 from kgarment.design.setup import DesignSetup, setup_from_problem
 from kgarment.design.store import run_store
@@ -171,6 +172,8 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
         if cancelled is not None and not st.done and cancelled():
             raise Cancelled()
 
+    if dr.state.done:  # a finished run resumed: its history files again, from the checkpoint
+        write_history(dr.run, dr.state)
     if coarse_levels(dr.problem) and dr.state.iteration == 0:
         dr = start_from_coarse(dr, after, cancelled)
     st = run_loop(dr.setup, dr.state, checkpoint=lambda s: save_checkpoint(dr.run, s), progress=after)

@@ -183,8 +183,16 @@ def save_checkpoint(run: Path, st: LoopState) -> None:
     for i, k in enumerate(ref_keys):
         arrays[f"ref_faces_{i}"] = st.reference_stored[k].face_energy
     atomic_save_npz(run / "checkpoint.npz", compressed=False, **arrays)  # rewritten every iteration
-    atomic_save_npz(run / "designs.npz", designs=arrays["designs"], n_faces=arrays["n_faces"])
-    write_metrics(run, st.metrics, text=text)
+    write_history(run, st, arrays["designs"], text)
+
+
+def write_history(run: Path, st: LoopState, packed: np.ndarray | None = None, text: str | None = None) -> None:
+    """designs.npz and the metrics files of ``st`` (what the checkpoint holds, written beside
+    it for readers; a resumed run writes them again, so damaged copies are rebuilt)."""
+    if packed is None:
+        packed = np.array([np.packbits(d) for d in st.designs]) if st.designs else np.zeros((0, 0), np.uint8)
+    atomic_save_npz(run / "designs.npz", designs=packed, n_faces=np.array(len(st.design)))
+    write_metrics(run, st.metrics, text=metrics_json(st.metrics) if text is None else text)
 
 
 CHECKPOINT_KEYS = ("iteration", "design", "target", "has_alpha", "alpha_prev", "warm_names", "objectives", "ref_keys",
