@@ -13,16 +13,13 @@ def cmd_reproduce(args) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from kgarment.io import check_kind
-    from kgarment.reproduce.catalog import DATA as DATA_FILE
-    from kgarment.reproduce.catalog import RESOLUTIONS, select
+    from kgarment.reproduce.catalog import DATA, RESOLUTIONS, select
     from kgarment.reproduce.pipeline import reproduce, rewrite_summary
     from kgarment.reproduce.report import write_report
 
     exps = select(args.experiments)
-    out = check_kind(args.out, "reproduction", legacy=(DATA_FILE, "evaluations.json", "runs"))
+    out = check_kind(args.out, "reproduction", legacy=(DATA, "evaluations.json", "runs"))
     if args.report_only:
-        from kgarment.reproduce.catalog import DATA
-
         if not (out / DATA).is_file():
             raise KgarmentError(f"{out} has no data.json; run kgarment reproduce --out {out} first")
         md, page = write_report(out)
