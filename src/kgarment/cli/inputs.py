@@ -81,7 +81,8 @@ def cmd_clutches(args) -> int:
     body = build_body(p)
     garment = build_garment(p, body)
     if args.action == "suggest":
-        specs = suggest_clutches(garment, motions=p.motions, count=args.count or 3, length=args.length or 0.10)
+        given = {k: v for k, v in (("count", args.count), ("length", args.length)) if v is not None}
+        specs = suggest_clutches(garment, motions=p.motions, **given)  # else its defaults (3, 0.10 m)
         strips = [build_clutch(s, garment.rest_vertices, garment.faces) for s in specs]
     else:
         strips = build_clutches(p, body, garment)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 
 from kgarment import constants as C
@@ -22,8 +23,9 @@ def cmd_reproduce(args) -> int:
     if args.report_only:
         if not (out / DATA).is_file():
             raise KgarmentError(f"{out} has no data.json; run kgarment reproduce --out {out} first")
-        md, page = write_report(out)
-        rewrite_summary(out)  # results.json from the same data.json as the report
+        doc = json.loads((out / DATA).read_text())
+        md, page = write_report(out, doc)
+        rewrite_summary(out, doc)  # results.json from the same data.json as the report
         print(f"report: {page} (Markdown: {md})")
         return 0
     res = RESOLUTIONS[args.resolution]

@@ -106,7 +106,7 @@ def open_run(problem: Problem | None, run, *, resume: bool = False, force: bool 
     strips = tuple(build_clutches(problem, body, garment, specs))
     setup = setup_from_problem(problem, body, garment, strips, "design", device)
     if not resume:
-        replace_folder(run, lambda tmp: write_inputs(tmp, problem, body, garment, specs, custom_garment, home=run),
+        replace_folder(run, lambda tmp: write_inputs(tmp, problem, body, garment, specs, custom_garment),
                        "run")
     st = resumed if resume else initial_state(setup)
     return DesignRun(run, problem, body, garment, strips, setup, st)
@@ -125,12 +125,10 @@ def run_inputs(run, problem: Problem | None = None) -> tuple[Problem, Body, Garm
     return problem, body, garment, tuple(build_clutches(problem, body, garment))
 
 
-def write_inputs(run: Path, problem: Problem, body: Body, garment: Garment, specs, custom_garment: bool,
-                 home: Path | None = None) -> None:
+def write_inputs(run: Path, problem: Problem, body: Body, garment: Garment, specs, custom_garment: bool) -> None:
     """problem.toml (+ problem.txt, problem.source.toml), clutches.toml and, for a garment
-    given by the caller, attachments.npz of a new run folder ``run`` (whose files will live
-    in ``home``, default ``run``; problem.toml refers to its clutch file by a path relative to
-    itself, so the run folder can be moved or copied)."""
+    given by the caller, attachments.npz of a new run folder ``run`` (problem.toml refers to
+    its clutch file by a path relative to itself, so the run folder can be moved or copied)."""
     if specs:
         marks = body_landmarks(body) if body.rigged else None
         save_clutches(run / "clutches.toml", specs, garment.rest_vertices, garment.faces, landmarks=marks)

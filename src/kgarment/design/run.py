@@ -171,7 +171,7 @@ def save_checkpoint(run: Path, st: LoopState) -> None:
         ref_clutch=np.array([st.reference_stored[k].clutch_energy for k in ref_keys], dtype=np.float64),
         metrics=np.frombuffer(text.encode(), np.uint8), done=np.array(st.done),
         n_faces=np.array(len(st.design)), sim_model=np.array(SIM_MODEL),
-        designs=np.array([np.packbits(d) for d in st.designs]) if st.designs else np.zeros((0, 0), np.uint8),
+        designs=packed_designs(st),
     )
     if st.guarded is not None:  # the step guard's, only when used (earlier checkpoints have none)
         arrays["guarded"] = st.guarded
@@ -186,12 +186,16 @@ def save_checkpoint(run: Path, st: LoopState) -> None:
     write_history(run, st, arrays["designs"], text)
 
 
+def packed_designs(st: LoopState) -> np.ndarray:
+    """(iterations, ceil(m / 8)) uint8: every iteration's design, one bit per face."""
+    return np.array([np.packbits(d) for d in st.designs]) if st.designs else np.zeros((0, 0), np.uint8)
+
+
 def write_history(run: Path, st: LoopState, packed: np.ndarray | None = None, text: str | None = None) -> None:
     """designs.npz and the metrics files of ``st`` (what the checkpoint holds, written beside
     it for readers; a resumed run writes them again, so damaged copies are rebuilt)."""
-    if packed is None:
-        packed = np.array([np.packbits(d) for d in st.designs]) if st.designs else np.zeros((0, 0), np.uint8)
-    atomic_save_npz(run / "designs.npz", designs=packed, n_faces=np.array(len(st.design)))
+    atomic_save_npz(run / "designs.npz", designs=packed_designs(st) if packed is None else packed,
+                    n_faces=np.array(len(st.design)))
     write_metrics(run, st.metrics, text=metrics_json(st.metrics) if text is None else text)
 
 

@@ -95,7 +95,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         "ours": ours.design,
         "ours_last": ours.last,
         "compliance": comp.design,
-        "manual": manual_design(g.rest_vertices, g.faces, ev.setup.end_faces, *anchor_rings(g), budget),
+        "manual": _manual(ev, budget),
         "full": np.ones(g.n_faces),
     }
     entry = {"name": exp.name, "title": exp.title, "group": exp.group, "multi": exp.multi,
@@ -127,8 +127,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
                 continue
             log.info("%s: the force over the motion of the %s design (%d frames)", exp.name, kind, res.path_frames)
             entry["path"][kind] = ev.path(designs[kind], res.path_frames)
-        entry["images"]["force"] = "img/" + force_figure(img / f"{exp.name}_force.png", entry["path"],
-                                                         f"{exp.name}: force over the motion").name
+        entry["images"]["force"] = _force_image(out, exp.name, entry["path"])
     lap("paths")
     entry["evaluations"]["random"] = [ev.evaluate(random_design(g.rest_vertices, g.faces, budget, seed), f"random {seed}")
                                       for seed in range(res.seeds)]
@@ -150,6 +149,17 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     return entry
 
 
+def _manual(ev: CachedEvaluator, budget: float) -> np.ndarray:
+    """(m,) the manual baseline (:func:`~kgarment.reproduce.baselines.manual_design`) of ``ev``'s problem."""
+    g = ev.garment
+    return manual_design(g.rest_vertices, g.faces, ev.setup.end_faces, *anchor_rings(g), budget)
+
+
+def _force_image(out: Path, name: str, paths: dict) -> str:
+    """The experiment's force-over-the-motion figure of ``paths`` ({design: path JSON}), its report link."""
+    return "img/" + force_figure(out / "img" / f"{name}_force.png", paths, f"{name}: force over the motion").name
+
+
 def refresh_manual(entry: dict, exp: Experiment, res, out: Path, cache: EvaluationCache, device: str,
                    overrides: dict | None = None) -> bool:
     """A kept experiment (its data.json ``entry``, updated in place) whose manual baseline
@@ -163,9 +173,7 @@ def refresh_manual(entry: dict, exp: Experiment, res, out: Path, cache: Evaluati
         return False
     problem = experiment_problem(exp, res, overrides=overrides)
     ev = CachedEvaluator(problem, f"{exp.name}@{res.name}", cache, device)
-    g = ev.garment
-    manual = manual_design(g.rest_vertices, g.faces, ev.setup.end_faces, *anchor_rings(g),
-                           problem.design.beso.target_area)
+    manual = _manual(ev, problem.design.beso.target_area)
     with np.load(npz) as z:
         stored = {k: z[k] for k in z.files}
     if np.array_equal(stored.get("manual"), manual > 0.5):
@@ -175,8 +183,7 @@ def refresh_manual(entry: dict, exp: Experiment, res, out: Path, cache: Evaluati
     if res.path_frames > 0 and "manual" in (entry.get("path") or {}):
         entry["evaluations"]["manual"], entry["path"]["manual"] = ev.evaluate_with_path(manual, "manual",
                                                                                          res.path_frames)
-        entry["images"]["force"] = "img/" + force_figure(out / "img" / f"{exp.name}_force.png", entry["path"],
-                                                         f"{exp.name}: force over the motion").name
+        entry["images"]["force"] = _force_image(out, exp.name, entry["path"])
     else:
         entry["evaluations"]["manual"] = ev.evaluate(manual, "manual", loads=True)
     entry["images"]["manual"] = "img/" + _render_design(out / "img" / f"{exp.name}_manual.png", ev, manual,
@@ -234,21 +241,23 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
     old = previous_results(out, res, overrides)
     results: dict = {}
     asked = {e.name for e in exps}
+
+    def write_so_far() -> None:  # an experiment finished is never lost; the cross-evaluations follow at the end
+        done = {n: results[n] if n in results else old[n] for n in BY_NAME if n in results or n in old}
+        _write(out, _document(res, done, {}, t0, device))
+
     for exp in select(None):  # the canonical order, earlier invocations' experiments included
         if exp.name in asked and run_again(exp.name, bool(experiments), old, out):
             log.info("experiment %s (%s resolution)", exp.name, res.name)
             before = continued(exp.name, old, out)  # before the run creates its folder
             results[exp.name] = _add_times(run_experiment(exp, res, out, cache, device, progress, overrides),
                                            before)
-            done = {n: results[n] if n in results else old[n] for n in BY_NAME if n in results or n in old}
-            # an experiment finished is never lost; the cross-evaluations follow at the end
-            _write(out, _document(res, done, {}, t0, device))
+            write_so_far()
         elif exp.name in old:
             log.info("experiment %s: kept from %s", exp.name, out / DATA)
             results[exp.name] = old[exp.name]
             if exp.name in asked and refresh_manual(results[exp.name], exp, res, out, cache, device, overrides):
-                _write(out, _document(res, {n: results.get(n, old.get(n)) for n in BY_NAME
-                                            if n in results or n in old}, {}, t0, device))
+                write_so_far()
     cross = {}
     for group in ("sleeve", "shirt"):
         m = cross_evaluate(group, results, res, out, cache, device, overrides)
@@ -306,9 +315,9 @@ def _write(out: Path, doc: dict) -> None:
     atomic_write_text(out / "results.json", json_text(summary(doc)))  # strict JSON: NaN -> null
 
 
-def rewrite_summary(out: Path) -> Path:
-    """``out/results.json`` written again from ``out/data.json`` (``--report-only``)."""
-    return atomic_write_text(Path(out) / "results.json", json_text(summary(json.loads((Path(out) / DATA).read_text()))))
+def rewrite_summary(out: Path, doc: dict) -> Path:
+    """``out/results.json`` written again from ``doc`` (``out/data.json``, ``--report-only``)."""
+    return atomic_write_text(Path(out) / "results.json", json_text(summary(doc)))
 
 
 def previous_results(out: Path, res, overrides: dict | None) -> dict:

@@ -9,6 +9,8 @@ against the manual baseline, ON."""
 
 from __future__ import annotations
 
+from kgarment.reproduce.text import md_table
+
 NEGLIGIBLE_N = 5.0  # a baseline clutch below this peak tension, or below NEGLIGIBLE_SHARE of
 NEGLIGIBLE_SHARE = 0.02  # ours, carries (almost) nothing: no ratio is printed
 
@@ -21,10 +23,10 @@ SENSOR = {"shirt_three_motions": {"arms_forward": "upper_back", "arms_raise": "l
 
 
 def peak_tension(path_doc: dict, motion: str, clutch: str | None) -> float:
-    """The largest tension (N) over the motion's ON frames of ``clutch`` (None: of any clutch)."""
-    vals = [(f["tension_N"].get(clutch, 0.0) if clutch else max(f["tension_N"].values(), default=0.0))
-            for f in path_doc["frames"] if f["motion"] == motion and f["state"] == "on"]
-    return max(vals, default=0.0)
+    """The largest tension (N) over the motion, ON, of ``clutch`` (None: of any clutch), from
+    the path's per-clutch summary (:meth:`kgarment.design.path.PathReport.summary`)."""
+    return max((r["peak_on_N"] for r in path_doc["summary"] if r["motion"] == motion and clutch in (None, r["clutch"])),
+               default=0.0)
 
 
 def sensor_rows(doc: dict) -> list[dict]:
@@ -47,8 +49,6 @@ def sensor_rows(doc: dict) -> list[dict]:
 
 def validation_lines(doc: dict) -> list[str]:
     """The report's section body (Markdown lines); empty without the forces it needs."""
-    from kgarment.reproduce.text import md_table
-
     rows = sensor_rows(doc)
     if not rows:
         return []
