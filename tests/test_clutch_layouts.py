@@ -7,7 +7,7 @@ import pytest
 
 from kgarment.clutch import MeshTopology, build_clutch
 from kgarment.clutch.landmarks import body_landmarks, first_hit
-from kgarment.clutch.layouts import LAYOUTS, default_layout
+from kgarment.clutch.layouts import LAYOUTS, default_layout, layout_names
 from kgarment.errors import KgarmentError
 from kgarment.garment import make_garment
 
@@ -19,6 +19,15 @@ def test_first_hit_against_a_plane():
     tri = np.array([[[0, 0, 1.0], [1, 0, 1], [0, 1, 1]], [[1, 1, 1.0], [0, 1, 1], [1, 0, 1]]])
     assert first_hit(np.array([0.3, 0.3, 0.0]), np.array([0, 0, 1.0]), tri) == pytest.approx(1.0)
     assert first_hit(np.array([0.3, 0.3, 0.0]), np.array([0, 0, -1.0]), tri) == np.inf
+
+
+@pytest.mark.parametrize("side", ["L", "R"])
+def test_layout_names_are_the_built_layouts_names(anny_body, side):
+    """The names a sweep checks activations against without a body are the layouts' own."""
+    for name in LAYOUTS:
+        assert layout_names(name, side) == [s.name for s in default_layout(name, anny_body, side)], name
+    with pytest.raises(KgarmentError, match="unknown clutch layout 'vest'"):
+        layout_names("vest")
 
 
 def test_landmarks_lie_on_the_body_where_expected(anny_body):

@@ -129,6 +129,20 @@ def test_unknown_bone_in_user_motion(tmp_path, anny_body):
     assert rc == 2 and "unknown bone 'elbow'; valid:" in err
 
 
+def test_motions_rejects_a_user_motion_with_an_unknown_bone(tmp_path, anny_body):
+    """`kgarment motions p.toml` checks the problem's own motions on Anny's rig, as `render` does."""
+    (tmp_path / "p.toml").write_text(
+        '[motions]\nuse = ["arms_raise"]\n[motions.define.w]\nrotations = [{ bone = "elbow", axis = "x", degrees = 3 }]\n')
+    rc, out, err = run_cli(["motions", "p.toml"], tmp_path)
+    assert rc == 2 and err.count("\n") == 1 and "[motions.define.w]: unknown bone 'elbow'; valid:" in err
+    assert out == ""
+    (tmp_path / "p.toml").write_text(
+        '[motions]\nuse = ["arms_raise"]\n[motions.define.w]\nrotations = [{ bone = "lowerarm01.L", axis = "x", degrees = 3 }]\n')
+    rc, out, err = run_cli(["motions", "p.toml"], tmp_path)
+    assert rc == 0, err
+    assert [line.split()[0] for line in out.splitlines()][-1] == "w"
+
+
 def test_render_command_with_user_motion(tmp_path, anny_body):
     (tmp_path / "p.toml").write_text(
         '[motions]\nuse = ["wave"]\n[motions.define.wave]\n'

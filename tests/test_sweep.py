@@ -132,16 +132,31 @@ def test_a_changed_sweep_is_refused_over_the_folder(swept, capsys):
 
 
 def test_a_failing_task_is_recorded_and_the_sweep_goes_on(tmp_path, capsys):
-    """A user error found only when the task runs (an activation naming no clutch of the
-    layout is checked once the clutches are built) fails that task: exit 1, its row says why."""
+    """A user error found only when the task runs (a garment mask's face indices are checked
+    against the body, which only the task builds) fails that task: exit 1, its row says why."""
+    (tmp_path / "sleeve.toml").write_text(SLEEVE)
+    (tmp_path / "mask.txt").write_text("0\n99999999\n")
+    (tmp_path / "bad.toml").write_text('problem = "sleeve.toml"\n[[runs]]\nname = "nope"\n'
+                                       '"garment.mask" = "mask.txt"\n')
+    assert main(["-q", "sweep", str(tmp_path / "bad.toml"), "--out", str(tmp_path / "out"), "--workers", "1"]) == 1
+    (row,) = _csv(tmp_path / "out")
+    assert row["task"] == "nope" and row["status"] == "failed" and "face indices outside" in row["error"]
+    assert "face indices outside" in (tmp_path / "out" / "sweep.md").read_text()
+    capsys.readouterr()
+
+
+def test_dry_run_checks_activation_clutch_names(tmp_path, capsys):
+    """An activation naming no clutch of the task's layout is refused before anything runs,
+    --dry-run included, naming the task, the motion and the clutches there are."""
     (tmp_path / "sleeve.toml").write_text(SLEEVE)
     (tmp_path / "bad.toml").write_text('problem = "sleeve.toml"\n[[runs]]\nname = "nope"\n'
                                        '"motions.activation"."arm_flexion.right" = ["no_such_clutch"]\n')
-    assert main(["-q", "sweep", str(tmp_path / "bad.toml"), "--out", str(tmp_path / "out"), "--workers", "1"]) == 1
-    (row,) = _csv(tmp_path / "out")
-    assert row["task"] == "nope" and row["status"] == "failed" and "no_such_clutch" in row["error"]
-    assert "no_such_clutch" in (tmp_path / "out" / "sweep.md").read_text()
-    capsys.readouterr()
+    for extra in (["--dry-run"], []):
+        assert main(["sweep", str(tmp_path / "bad.toml"), "--out", str(tmp_path / "out"), *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "task 'nope'" in err and "unknown clutch 'no_such_clutch'" in err
+        assert "the clutches are: elbow_outer.R" in err
+    assert not (tmp_path / "out").exists()
 
 
 BASE = 'problem = "sleeve.toml"\n'

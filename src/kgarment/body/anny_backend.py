@@ -154,6 +154,16 @@ def _rest_data(phenotype: Phenotype, model: _AnnyModel) -> dict:
     return data
 
 
+def anny_rig(phenotype: Phenotype | None = None) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+    """The rig of the Anny body with ``phenotype``: bone names (B,), parents (B,) int, rest joints (B, 3) m.
+
+    Read from the rest body's cache (built on a miss, as :func:`load_anny_body` does).
+    """
+    phenotype = phenotype or Phenotype()
+    rest = _rest_data(phenotype, _AnnyModel(phenotype))
+    return tuple(str(b) for b in rest["bone_names"]), rest["bone_parents"], rest["rest_joints"]
+
+
 def load_anny_body(motions: list[Motion], phenotype: Phenotype | None = None) -> Body:
     """The Anny body with the given phenotype, posed in each motion's target pose.
 

@@ -11,7 +11,19 @@ from kgarment.errors import KgarmentError
 def cmd_motions(args) -> int:
     from kgarment.body.motions import PAPER_MOTIONS
 
-    for name, m in load(args).library().all().items():
+    p = load(args)
+    lib = p.library()
+    if lib.user and p.body.model == "anny":  # the problem's own motions: every bone and axis on Anny's rig
+        from kgarment.body.anny_backend import anny_rig
+        from kgarment.body.motions import bone_rotations
+
+        rig = anny_rig(p.body.phenotype)
+        for name, m in lib.user.items():
+            try:
+                bone_rotations(m.target, *rig)
+            except KgarmentError as exc:
+                raise KgarmentError(f"[motions.define.{name}]: {exc}") from None
+    for name, m in lib.all().items():
         tag = " (paper)" if name in PAPER_MOTIONS else ""
         print(f"{name:24s} {m.description}{tag}")
     return 0

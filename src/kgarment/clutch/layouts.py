@@ -64,6 +64,16 @@ def _back(L) -> list[ClutchSpec]:
     return specs
 
 
+def layout_names(name: str, side: str = "R") -> list[str]:
+    """The clutch names of the named layout, in :func:`default_layout`'s order (no body needed)."""
+    if name not in LAYOUTS:
+        raise unknown("clutch layout", name, LAYOUTS)
+    back = ["upper_back", "lower_back.L", "lower_back.R"]
+    arm = {"arm_flexion": [f"elbow_outer.{side}"], "arm_extension": [f"elbow_inner.{side}"]}
+    arm["sleeve"] = arm["arm_flexion"] + arm["arm_extension"]
+    return {**arm, "shirt": back, "long_sleeve": back + arm["sleeve"]}[name]
+
+
 def default_layout(name: str, body: Body, side: str = "R") -> list[ClutchSpec]:
     """The named default layout on ``body`` (arm clutches on ``side``, "L" or "R")."""
     if name not in LAYOUTS:

@@ -12,7 +12,7 @@ from kgarment import constants as C
 from kgarment.body import Body, load_anny_body, load_mesh_sequence
 from kgarment.clutch import ClutchSpec, ClutchStrip, MeshTopology, build_clutch, load_clutches
 from kgarment.clutch.landmarks import body_landmarks
-from kgarment.clutch.layouts import default_layout
+from kgarment.clutch.layouts import default_layout, layout_names
 from kgarment.errors import KgarmentError
 from kgarment.garment import Garment, garment_from_mask, load_face_mask, make_garment
 from kgarment.problem.spec import ClutchHardware, Problem
@@ -38,6 +38,15 @@ def build_garment(problem: Problem, body: Body) -> Garment:
         return make_garment(body, g.template, g.subdivision)
     mask = load_face_mask(g.mask, len(body.faces))
     return garment_from_mask(body, mask, g.mask.stem, g.subdivision, g.attach)
+
+
+def clutch_names(problem: Problem) -> list[str]:
+    """The names of the problem's clutches, in :func:`clutch_specs`' order, without building the body."""
+    c = problem.clutch_spec()
+    names = list(layout_names(c.layout, c.side)) if c.layout else []
+    if c.file:
+        names += [s.name for s in load_clutches(c.file)]
+    return names + [s.name for s in c.inline]
 
 
 def clutch_specs(problem: Problem, body: Body) -> list[ClutchSpec]:

@@ -283,8 +283,14 @@ def _index(node: list, part: str, here: str, where: str) -> int:
 
 
 def _validate(data: dict, base_dir: Path, source, where: str) -> Problem:
+    """The parsed problem, its [motions.activation] clutch names checked too (a run would refuse them)."""
+    from kgarment.design.setup import activation_vectors
+    from kgarment.problem.build import clutch_names
+
     try:
-        return parse_problem(copy.deepcopy(data), base_dir, source)
+        problem = parse_problem(copy.deepcopy(data), base_dir, source)
+        activation_vectors(problem, clutch_names(problem))
+        return problem
     except KgarmentError as exc:
         raise KgarmentError(f"{where}: {exc}") from None
 
