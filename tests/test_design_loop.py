@@ -190,28 +190,66 @@ def test_settle_cools_the_exchange_at_the_target():
     assert not (st.designs[-1] ^ st.designs[-2]).any()
 
 
-def test_skin_start_keeps_the_lower_energy_of_both_starts():
-    """With ``skin_start`` an iteration solves every state from the last equilibrium and
-    from the skin-tight garment in one batch and keeps, per state, the lower-energy
-    solution under the state's own name: the same as solving the two starts apart; its
-    Newton iterations count both."""
+def test_skin_start_keeps_the_lowest_energy_of_the_evaluators_starts():
+    """With ``skin_start`` an iteration solves every state from the last equilibrium, from
+    the skin-tight garment and from the fully reinforced garment's equilibrium (iteration
+    0's, kept in the loop state under the state's name + FULL: the evaluator's two starts)
+    in one batch and keeps, per state, the lowest-energy solution under the state's own
+    name: the same as solving the three starts apart; its Newton iterations count all."""
     import dataclasses
 
-    from kgarment.design.loop import iterate, solve
+    from kgarment.design.evaluate import MULTISTABLE
+    from kgarment.design.loop import FULL, iterate, solve
+
+    setup, _ = _sheet_setup(max_iterations=4)
+    setup = dataclasses.replace(setup, skin_start=True)
+    states = [s for _, s in setup.states()]
+    first = iterate(setup, initial_state(setup))
+    full_eq = setup.solve(np.ones(setup.model.n_faces), states, options=setup.options(0, 1.0))
+    for s, r in zip(states, full_eq):  # iteration 0 is the fully reinforced garment from skin-tight
+        assert np.array_equal(first.warm[s.name + FULL], r.x)
+    st = iterate(setup, first)
+    assert all(np.array_equal(st.warm[s.name + FULL], first.warm[s.name + FULL]) for s in states)  # kept
+    solved = solve(setup, st)
+    opts = setup.options(st.iteration, st.target)
+    warm = setup.solve(st.design, states, warm_start=[st.warm.get(s.name) for s in states], options=opts)
+    cold = setup.solve(st.design, states, options=opts)
+    full = setup.solve(st.design, states, warm_start=[st.warm[s.name + FULL] for s in states], options=opts)
+    assert all(r.converged for r in warm + cold + full)
+    assert any(c.convergence.iterations != f.convergence.iterations for c, f in zip(cold, full))
+    for s, r, *three in zip(states, solved.results, warm, cold, full):
+        assert r.name == s.name
+        assert any(r.total_energy == t.total_energy and np.array_equal(r.x, t.x) for t in three)
+        assert r.total_energy <= min(t.total_energy for t in three) * (1 + MULTISTABLE)
+    # the iteration's Newton count is that of every start's solve, not only the kept ones
+    assert solved.newton_iterations == sum(r.convergence.iterations for r in warm + cold + full)
+
+
+def test_a_start_that_stopped_below_the_kept_equilibrium_is_solved_on():
+    """A start whose solve ran out of iterations below the kept (converged) equilibrium's
+    energy is solved on from where it stopped and replaces it when it converges lower; one
+    that stopped above it is left (nothing solved)."""
+    import dataclasses
+
+    from kgarment.design.loop import _continue_lower, iterate
 
     setup, _ = _sheet_setup(max_iterations=4)
     setup = dataclasses.replace(setup, skin_start=True)
     st = iterate(setup, iterate(setup, initial_state(setup)))
-    solved = solve(setup, st)
-    states = [s for _, s in setup.states()]
+    states = [s for _, s in setup.states()][:1]
     opts = setup.options(st.iteration, st.target)
-    warm = setup.solve(st.design, states, warm_start=[st.warm.get(s.name) for s in states], options=opts)
-    cold = setup.solve(st.design, states, options=opts)
-    assert all(r.converged for r in warm + cold)
-    assert any(w.convergence.iterations != c.convergence.iterations for w, c in zip(warm, cold))
-    for s, r, w, c in zip(states, solved.results, warm, cold):
-        best = w if w.total_energy <= c.total_energy else c
-        assert r.name == s.name
-        assert r.total_energy == best.total_energy and np.array_equal(r.x, best.x)
-    # the iteration's Newton count is that of both starts' solves, not only the kept ones
-    assert solved.newton_iterations == sum(r.convergence.iterations for r in warm + cold)
+    (eq,) = setup.solve(st.design, states, options=opts)
+    (stopped,) = setup.solve(st.design, states, options=dataclasses.replace(opts, max_iter=2, rescue_shifts=0,
+                                                                             on_fail="info"))
+    assert eq.converged and not stopped.converged and stopped.total_energy > eq.total_energy
+    stopped = dataclasses.replace(stopped, name=states[0].name + "@skin-tight")
+    # it stopped above the equilibrium: kept as it is
+    out, more = _continue_lower(setup, st.design, states, [eq], [stopped], opts)
+    assert out == [eq] and more == []
+    # a converged solution of higher energy than where the start stopped (another basin's
+    # stand-in): the start is solved on to the equilibrium below and kept
+    high = dataclasses.replace(eq, energy={k: 3 * v + stopped.total_energy for k, v in eq.energy.items()})
+    (out,), more = _continue_lower(setup, st.design, states, [high], [stopped], opts)
+    assert len(more) == 1 and more[0].converged and out.name == states[0].name
+    assert out.total_energy == pytest.approx(eq.total_energy, rel=1e-4)
+    assert np.allclose(out.x, eq.x, atol=1e-4)

@@ -5,8 +5,9 @@ One iteration (:func:`iterate`) is four steps, each a function of the frozen
 
 1. :func:`solve`: every state (motion x activation) for the current design, warm started
    from the previous iteration's equilibria (the last converged one per state; see
-   ``WARM_MAX_RESIDUAL``) and, with ``skin_start``, also from the skin-tight garment (both
-   starts in one batch of solves; the lower-energy equilibrium kept) -> :class:`Solved`
+   ``WARM_MAX_RESIDUAL``) and, with ``skin_start``, also from the evaluator's two starts, the
+   skin-tight garment and the fully reinforced garment's equilibrium (``FULL``; all starts in
+   one batch of solves; the lower-energy equilibrium kept) -> :class:`Solved`
    (equilibria, stored energies);
 2. :func:`metrics_row`: the iteration's metrics (area, objective and each motion's term
    of it, rho per state, islands, clutch ends, the tension each clutch carries in each ON
@@ -30,6 +31,7 @@ relative energy density rho (method.md section 7) and of the objective.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from collections.abc import Callable
@@ -39,7 +41,7 @@ import numpy as np
 
 from kgarment.design.beso import converged, design_values, next_target, settled_ar, update_design
 from kgarment.design.connect import connect_design
-from kgarment.design.evaluate import pick_equilibrium, solve_two_starts
+from kgarment.design.evaluate import MULTISTABLE, pick_equilibrium
 from kgarment.design.guard import REJECTED, TERM, boosted, guard_step, last_accepted, terms_of
 from kgarment.design.metrics import Stored, relative_energy_density
 from kgarment.design.objective import (
@@ -73,6 +75,11 @@ log = logging.getLogger(__name__)
 # bend forward 1.85 -> 1.86, arms forward and arm extension identical.  Quality first:
 # off by default.
 WARM_MAX_RESIDUAL = 0.0
+
+# With ``skin_start`` the loop state's ``warm`` also keeps iteration 0's (the fully reinforced
+# garment's) equilibrium of each state under its name + FULL: every iteration solves from
+# it too, the evaluator's second start (kgarment.design.evaluate).
+FULL = "@full"
 
 
 @dataclass(frozen=True)
@@ -144,9 +151,19 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     opts = setup.options(st.iteration, st.target)
     warm = [st.warm.get(s.name) for s in states]
     if setup.skin_start and st.warm:
-        warm_results, cold = solve_two_starts(setup, st.design, states, warm, opts)
-        results = [pick_equilibrium(w, c).result for w, c in zip(warm_results, cold)]
-        both = warm_results + cold
+        n = len(states)
+        full = [st.warm.get(s.name + FULL) for s in states]  # the evaluator's second start (FULL)
+        has = [i for i, x in enumerate(full) if x is not None]
+        extra = [dataclasses.replace(s, name=s.name + "@skin-tight") for s in states] + \
+            [dataclasses.replace(states[i], name=states[i].name + FULL) for i in has]
+        both = setup.solve(st.design, states + extra, warm_start=warm + [None] * n + [full[i] for i in has],
+                           options=opts)  # one batch: the workers share the solves
+        results = [pick_equilibrium(w, dataclasses.replace(c, name=s.name)).result
+                   for s, w, c in zip(states, both[:n], both[n:2 * n])]
+        for j, i in enumerate(has):
+            results[i] = pick_equilibrium(results[i], dataclasses.replace(both[2 * n + j], name=states[i].name)).result
+        results, more = _continue_lower(setup, st.design, states, results, both[n:], opts)
+        both = both + more
     else:
         results = both = setup.solve(st.design, states, warm_start=warm, options=opts)
     path_newton = 0
@@ -165,6 +182,35 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     return Solved([k for k, _ in keyed], states, results, opts, opts is not setup.solver,
                   [r.name for r in results if not r.converged], energy, stored, alpha,
                   int(sum(r.convergence.iterations for r in both)) + path_newton, checked)
+
+
+def _continue_lower(setup: DesignSetup, design: np.ndarray, states: list[SimState], results: list[StateResult],
+                    others: list[StateResult], opts) -> tuple[list[StateResult], list[StateResult]]:
+    """A start whose solve ran out of iterations below the kept equilibrium's energy (by more
+    than MULTISTABLE; Newton only descends, so a lower basin is there) is solved on from
+    where it stopped, and kept if it converges lower: the evaluator, at its tolerance and
+    with its rescues, finds that basin, so the run must not keep the higher equilibrium.
+    Measured on the arm-flexion sleeve (preview, 2026-11-28): the skin-tight start stopped at
+    200 Newton iterations in most iterations at the target area; the run's metrics said rho
+    ON 1.74 where the evaluator found 0.20.  Returns the results and the extra solves."""
+    idx = {s.name: i for i, s in enumerate(states)}
+    best: dict[int, StateResult] = {}
+    for r in others:  # named state + "@skin-tight" or + FULL
+        i = idx.get(r.name.removesuffix("@skin-tight").removesuffix(FULL))
+        if i is None or r.converged or not results[i].converged:
+            continue
+        if r.total_energy < results[i].total_energy * (1 - MULTISTABLE) and \
+                (i not in best or r.total_energy < best[i].total_energy):
+            best[i] = r
+    if not best:
+        return results, []
+    todo = sorted(best)
+    more = setup.solve(design, [dataclasses.replace(states[i], name=states[i].name + "@continued") for i in todo],
+                       warm_start=[best[i].x for i in todo], options=opts)
+    out = list(results)
+    for i, r in zip(todo, more):
+        out[i] = pick_equilibrium(out[i], dataclasses.replace(r, name=states[i].name)).result
+    return out, list(more)
 
 
 def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved,
@@ -277,8 +323,11 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
         if setup.protected is not None:
             design[setup.protected] = 1.0
     warm = st.warm if rejected else {
-        s.name: r.x if r.converged or r.convergence.residual <= WARM_MAX_RESIDUAL or s.name not in st.warm
-        else st.warm[s.name] for s, r in zip(solved.states, solved.results)}
+        **{k: x for k, x in st.warm.items() if k.endswith(FULL)},
+        **{s.name: r.x if r.converged or r.convergence.residual <= WARM_MAX_RESIDUAL or s.name not in st.warm
+           else st.warm[s.name] for s, r in zip(solved.states, solved.results)}}
+    if setup.skin_start and st.iteration == 0:  # the fully reinforced garment's equilibria: a start of every iteration
+        warm.update({s.name + FULL: r.x for s, r in zip(solved.states, solved.results) if r.converged})
     return LoopState(st.iteration + 1, design, target, alpha, warm, objectives, reference, reference_stored,
                      st.designs + (st.design > 0.5,), st.metrics + (row,), done, guarded, accepted)
 

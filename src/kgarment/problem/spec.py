@@ -227,9 +227,10 @@ class SolverSpec:
     be?"); ``benchmarks/design.py`` measures what it costs and buys.  Set it equal to
     ``tol`` to solve every iteration alike.
     max_iter : Newton iterations per state.
-    skin_start : every design iteration also solves each state from the skin-tight garment and
-    keeps the lower-energy equilibrium (the evaluator's rule, :mod:`kgarment.design.evaluate`),
-    so that the run optimises the state the evaluation reports; doubles the solves.  For
+    skin_start : every design iteration also solves each state from the evaluator's two
+    starts (the skin-tight garment and the fully reinforced garment's equilibrium) and keeps
+    the lowest-energy equilibrium (the evaluator's rule, :mod:`kgarment.design.evaluate`), so
+    that the run optimises the state the evaluation reports; triples the solves.  For
     clutches that a frictionless limb lets slide off the stretched side (the arm-flexion
     sleeve: along the warm-started path the clutch stays over the outer elbow at 40-300% more
     energy than where the garment settles, turned ~20 degrees about the arm).
