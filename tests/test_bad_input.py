@@ -8,6 +8,8 @@ once the body is built use the session's cached Anny body.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import trimesh
@@ -84,6 +86,16 @@ PROBLEMS = [
     ('[clutches]\nholding_stress = 1e5\nvoltage = 300\n', "holding_stress and voltage both set the holding stress"),
     ('[clutches]\nvoltage = 0\n', "[clutches] voltage = 0.0 must be > 0"),
     ('[clutches]\nfriction = 5\n', "[clutches] friction = 5.0 is outside"),
+    # names become file names: never a path
+    (ROT.replace('"w"', '"x/../../escaped"').replace("define.w", 'define."x/../../escaped"') % 'axis = "x", degrees = 30',
+     "motion name 'x/../../escaped'; allowed"),
+    (ROT.replace('"w"', '"arms_raise"').replace("define.w", "define.arms_raise") % 'axis = "x", degrees = 30',
+     "'arms_raise' is a built-in motion"),
+    (CLUTCH.replace('name = "c"', 'name = "../c"') + 'direction = [0, 0, -1]\nlength = 0.1\n',
+     "clutch name '../c': allowed: letters, digits"),
+    ('[garment]\nmask = "p.toml"\nattach = 5\n', "[garment] attach = 5 must be a list of attachment loop names"),
+    ('[garment]\nmask = "p.toml"\nattach = "wrist"\n', "attach = 'wrist' must be a list"),
+    ('[body]\nmodel = "meshes"\nrest = "p.toml"\nmotions = "abc"\n', "[body] motions must be a table of mesh files"),
 ]
 
 
@@ -266,6 +278,67 @@ def test_results_are_never_added_to_a_folder_of_another_kind(tmp_path, monkeypat
         assert_one_line(rc, err, message)
     assert {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir()} == before
     assert sorted(p.name for p in (tmp_path / "mine").iterdir()) == ["notes.txt", "sub"]
+
+
+def test_a_problem_or_sweep_file_that_is_not_utf8(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "latin1.toml").write_bytes(b'[garment]\ntemplate = "arm_sleeve.right" # \xff\n')
+    rc, _, err = run_cli(["motions", "latin1.toml"])
+    assert_one_line(rc, err, "problem file latin1.toml is not UTF-8 text")
+    (tmp_path / "s.toml").write_bytes(b'problem = "latin1.toml"\n[grid]\n"design.target_area" = [0.2]\n')
+    rc, _, err = run_cli(["sweep", "s.toml", "--dry-run"])
+    assert_one_line(rc, err, "latin1.toml is not UTF-8 text")
+    (tmp_path / "s2.toml").write_bytes(b'# \xff\nproblem = "latin1.toml"\n')
+    rc, _, err = run_cli(["sweep", "s2.toml", "--dry-run"])
+    assert_one_line(rc, err, "sweep file s2.toml is not UTF-8 text")
+
+
+@pytest.mark.parametrize("content, message", [(b"garbage", "is damaged (JSONDecodeError)"),
+                                              (b"[]", "is damaged (not a JSON object)"),
+                                              (b"{}", "is damaged (no 'resolution')"),
+                                              (b'{"resolution": 1, "experiments": []}', "'experiments' is not a table")])
+def test_a_damaged_reproduction_data_file(content, message, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "repro").mkdir()
+    (tmp_path / "repro" / "data.json").write_bytes(content)
+    rc, _, err = run_cli(["reproduce", "--report-only", "--out", "repro"])
+    assert_one_line(rc, err, message)
+    assert (tmp_path / "repro" / "data.json").read_bytes() == content
+
+
+def test_simulate_and_render_never_overwrite_the_users_files(tmp_path, monkeypatch):
+    """simulate writes into an empty or its own folder only; render replaces pictures only
+    with --force; clutches show keeps the user's picture."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.toml").write_text(SLEEVE)
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "arm_flexion.right.png").write_text("mine")
+    rc, _, err = run_cli(["simulate", "p.toml", "--out", "mine"])
+    assert_one_line(rc, err, "mine exists and holds files kgarment did not write")
+    (tmp_path / "mine" / "arm_sleeve.right_rest.png").write_text("mine")
+    rc, _, err = run_cli(["render", "p.toml", "--out", "mine"])
+    assert_one_line(rc, err, "mine/arm_sleeve.right_rest.png exists; use --force to overwrite it")
+    (tmp_path / "mine" / "clutches.png").write_text("mine")
+    rc, _, err = run_cli(["clutches", "show", "p.toml", "--out", "mine"])
+    assert_one_line(rc, err, "mine/clutches.png exists; use --force")
+    assert {p.name: p.read_text() for p in (tmp_path / "mine").iterdir()} == {
+        "arm_flexion.right.png": "mine", "arm_sleeve.right_rest.png": "mine", "clutches.png": "mine"}
+
+
+def test_run_paths_with_an_at_sign(tmp_path, monkeypatch):
+    """A run folder whose path holds '@' is taken whole; RUN@K splits at the last '@'."""
+    from kgarment.design.run import parse_design_source
+    from kgarment.errors import KgarmentError
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "v@2").mkdir()
+    _old_run(tmp_path / "v@2" / "run")
+    assert parse_design_source("v@2/run").run == Path("v@2/run")
+    src = parse_design_source("v@2/run@3")
+    assert src.run == Path("v@2/run") and src.iteration == 3
+    for bad in ("v@2/run@-1", "v@2/run@\u0663"):
+        with pytest.raises(KgarmentError, match="must be a whole number from 0"):
+            parse_design_source(bad)
 
 
 def test_a_run_folders_own_files_are_never_overwritten(tmp_path, monkeypatch):

@@ -78,6 +78,25 @@ def test_sizes_reuses_finished_runs(twins, capsys):
     assert "kept" in capsys.readouterr().out
 
 
+def test_sizes_never_reports_runs_of_another_problem_nor_writes_into_other_folders(twins, tmp_path, capsys):
+    """Kept runs made for another problem are refused before any work (not reported as this
+    one's), and the output folder is never a design run or a folder of the user's."""
+    before = {p: p.stat().st_mtime_ns for p in twins.rglob("*") if p.is_file()}
+    (tmp_path / "other.toml").write_text(SLEEVE.format(phenotypes=TWINS).replace("target_area = 0.6", "target_area = 0.7"))
+    assert main(["-q", "sizes", str(tmp_path / "other.toml"), "--out", str(twins)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "was designed for another problem (its design differ)" in err
+    assert {p: p.stat().st_mtime_ns for p in twins.rglob("*") if p.is_file()} == before
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "sizes.md").write_text("my table")
+    for out, message in ((twins / "runs" / "a", "is a kgarment run folder, not a sizes folder"),
+                         (tmp_path / "mine", "exists and holds files kgarment did not write")):
+        assert main(["-q", "sizes", str(twins.parent / "twins.toml"), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and message in err, err
+    assert (tmp_path / "mine" / "sizes.md").read_text() == "my table"
+
+
 def test_another_size_is_the_transferred_design(twins, tmp_path, anny_body, capsys):
     """A wearer of another size in a multi-body evaluation gets the numbers of the design
     moved to that body by ``kgarment evaluate --phenotype``, and the first wearer those of

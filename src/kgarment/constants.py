@@ -67,6 +67,7 @@ SOLVER_RANGES = {"tol": (1e-14, 1.0), "evolution_tol": (1e-14, 1.0), "max_iter":
                  "path_start": (0, 100000)}
 PATH_START_FRAMES = 5  # [solver] path_start: frames of the motion from rest (the last one the target pose)
 SUBDIVISIONS = (0, 1, 2, 3)
+NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")  # a motion or clutch name: file names are made of it
 BODY_NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}")  # a wearer of a multi-body design ([body] phenotypes)
 BODY_SEP = "@"  # a multi-body design's motions are MOTION@BODY
 ROTATION_DEGREES = (-180.0, 180.0)  # a motion's rotation of one bone, degrees

@@ -256,6 +256,25 @@ def _check_parent(path: Path, candidates, flag: str) -> None:
         raise KgarmentError(f"{flag} {path}: cannot write into {parent} ({exc.strerror or exc})") from None
 
 
+def read_json_object(path, what: str, keys=()) -> dict:
+    """The JSON object in ``path`` (a kgarment ``what``, e.g. "final evaluation") holding
+    ``keys``; missing, unreadable, not JSON, not an object or lacking a key -> one
+    KgarmentError naming the file."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise KgarmentError(f"{what} {path} not found") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise KgarmentError(f"{what} {path} is damaged ({type(exc).__name__})") from None
+    if not isinstance(doc, dict):
+        raise KgarmentError(f"{what} {path} is damaged (not a JSON object)")
+    missing = [k for k in keys if k not in doc]
+    if missing:
+        raise KgarmentError(f"{what} {path} is damaged (no {missing[0]!r})")
+    return doc
+
+
 def load_npz(path, what: str, keys=()) -> dict:
     """The arrays of ``path`` (a kgarment ``what``) as a dict; a missing, damaged or foreign
     file -> one KgarmentError naming it (and the ``keys`` it must hold)."""

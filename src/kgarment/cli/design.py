@@ -203,6 +203,12 @@ def cmd_evaluate(args) -> int:
                               "cable": "pull-only cables between their ends, slipping at their holding force"}[hw.model]
               + ("; the strips buckle (no compression)" if hw.buckle else "; the strips resist compression"))
     k = iteration_of(src)
+    # another clutch model or skin friction than the run's gets --path files of its own (the run's path stays)
+    stem = src.run / (f"path-{k}" + (f"-{hw.model}" + ("-buckle" if hw.buckle else "") if other_hw else "")
+                      + (f"-mu{args.skin_friction:g}" if args.skin_friction is not None else ""))
+    for flag, f in (("--json", args.json), ("--plot", args.plot)):
+        if args.path and f and Path(f).resolve() in (stem.with_suffix(".json").resolve(), stem.with_suffix(".png").resolve()):
+            raise KgarmentError(f"{flag} {f} is where --path writes the force over the motion; give another file")
     p, body, garment, strips = run_inputs(src.run, p)
     store = run_store(src.run)  # the run's final evaluation left its equilibria there
     ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device, store=store)
@@ -216,9 +222,6 @@ def cmd_evaluate(args) -> int:
         print(f"force over the motion: {args.path} frames from rest to the target pose, ON and OFF")
         path = path_forces(ev, design, p, frames=args.path, report=lambda line: print(f"  {line}", flush=True))
         print(path.table())
-        # another clutch model or skin friction than the run's gets files of its own (the run's path stays)
-        stem = src.run / (f"path-{k}" + (f"-{hw.model}" + ("-buckle" if hw.buckle else "") if other_hw else "")
-                          + (f"-mu{args.skin_friction:g}" if args.skin_friction is not None else ""))
         atomic_write_text(stem.with_suffix(".json"), json_text({"run": str(src.run), "iteration": k,
                                                                  **path.to_json()}))
         title = f"{src.run.name} iteration {k}: force over the motion" + {"slip": " (clutches slip)", "cable": " (cable clutches)"}.get(hw.model, "")

@@ -56,7 +56,7 @@ def cmd_render(args) -> int:
     import logging
     import time
 
-    from kgarment.io import check_output_folder
+    from kgarment.io import check_output_file, check_output_folder
     from kgarment.problem import build_body, build_clutches, build_garment
     from kgarment.render import render_poses
 
@@ -67,6 +67,8 @@ def cmd_render(args) -> int:
     t0 = time.time()
     body = build_body(p)
     garment = build_garment(p, body)
+    for pose in ("rest", *p.motions):  # render_poses' files: the user's pictures are not overwritten
+        check_output_file(Path(args.out) / f"{garment.name}_{pose}.png", "--out", force=args.force)
     strips = build_clutches(p, body, garment)
     logging.getLogger("kgarment").info("body %d vertices, garment %s: %d faces (%.3f m^2), %.1f s", body.n_vertices,
                                        garment.name, garment.n_faces, garment.face_areas().sum(), time.time() - t0)
@@ -88,6 +90,7 @@ def cmd_clutches(args) -> int:
     out = check_output_folder(args.out)
     name = "suggested" if args.action == "suggest" else "clutches"
     cfile = check_output_file(out / f"{name}.toml", "--out", force=args.force)  # never a run's own clutch file
+    check_output_file(out / f"{name}.png", "--out", force=args.force)  # nor its picture
     if not args.quiet:
         print(p.describe())
     body = build_body(p)
@@ -148,6 +151,7 @@ def add_parsers(sub) -> None:
     add_overrides(sp)
     sp.add_argument("--views", nargs="+", default=list(STANDARD_VIEWS), choices=list(VIEWS), help="views to draw")
     sp.add_argument("--out", default="runs/render", help="output folder (default runs/render)")
+    sp.add_argument("--force", action="store_true", help="overwrite pictures already in --out")
     sp.set_defaults(func=cmd_render)
 
     sp = sub.add_parser("clutches", help="show the problem's clutches, or suggest placements over high strain")

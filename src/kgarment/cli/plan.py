@@ -27,6 +27,9 @@ def cmd_plan(args) -> int:
     out = Path(args.out) if args.out else src.run
     stem = "plan" if src.iteration is None else f"plan@{src.iteration}"
     files = [out / f"{stem}.json", out / f"{stem}.md"]
+    folders = [f for f in files if f.is_dir()]
+    if folders:
+        raise KgarmentError(f"{folders[0]} is a folder; the plan is written there as a file: give --out DIR")
     existing = [f for f in files if f.exists()]
     if existing and not args.force:
         raise KgarmentError(f"{existing[0]} exists; --force replaces it, --out DIR writes elsewhere")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import time
 
 from kgarment import constants as C
@@ -13,7 +12,7 @@ from kgarment.errors import KgarmentError
 def cmd_reproduce(args) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from kgarment.io import check_kind
+    from kgarment.io import check_kind, read_json_object
     from kgarment.reproduce.catalog import DATA, RESOLUTIONS, select
     from kgarment.reproduce.pipeline import reproduce, rewrite_summary
     from kgarment.reproduce.report import write_report
@@ -23,7 +22,9 @@ def cmd_reproduce(args) -> int:
     if args.report_only:
         if not (out / DATA).is_file():
             raise KgarmentError(f"{out} has no data.json; run kgarment reproduce --out {out} first")
-        doc = json.loads((out / DATA).read_text())
+        doc = read_json_object(out / DATA, "reproduction data", ("resolution", "experiments"))
+        if not isinstance(doc["experiments"], dict):
+            raise KgarmentError(f"reproduction data {out / DATA} is damaged ('experiments' is not a table)")
         md, page = write_report(out, doc)
         rewrite_summary(out, doc)  # results.json from the same data.json as the report
         print(f"report: {page} (Markdown: {md})")

@@ -19,9 +19,11 @@ def cmd_simulate(args) -> int:
     p = load(args)
     if not args.quiet:
         print(p.describe())
-    out = check_kind(args.out, "simulation")
-    fresh = not out.exists() or not any(out.iterdir())  # marked below only if kgarment makes it
     motions = list(args.motion or p.motions)
+    # a folder kgarment did not make is written into only when empty (or holding results of
+    # a simulation made before folders were marked: its motions' .ply files)
+    out = check_kind(args.out, "simulation", legacy=tuple(f"{m}.ply" for m in motions))
+    fresh = not out.exists() or not any(out.iterdir())  # marked below only if kgarment makes it
     if any((out / f"{m}.ply").exists() for m in motions) and not args.force:
         raise KgarmentError(f"{out} already holds results; use --force to overwrite them")
     body = build_body(p)

@@ -13,6 +13,7 @@ from kgarment.clutch.mesh import MIN_SEGMENT, build_strip
 from kgarment.clutch.strip import ClutchStrip
 from kgarment.clutch.topology import MeshTopology
 from kgarment.clutch.walk import trace_path
+from kgarment.constants import NAME
 
 MAX_SNAP_DISTANCE = 0.02  # metres: a 3D start point farther from the garment is an error
 
@@ -142,6 +143,9 @@ class ClutchSpec:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise ClutchError(f"clutch name must be a non-empty string, got {self.name!r}")
+        if not NAME.fullmatch(self.name):
+            raise ClutchError(f"clutch name {self.name!r}: allowed: letters, digits, _ . + - (at most 64, not "
+                              "starting with . + -; file names are made of it)")
         who = f"clutch {self.name!r}"
         start = _start(self.start, who)
         object.__setattr__(self, "start", start)

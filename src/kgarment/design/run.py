@@ -48,14 +48,19 @@ class DesignSource:
 def parse_design_source(text: str, run_required: bool = False) -> DesignSource:
     """'RUN' (its final design), 'RUN@K' (iteration K) or a design file path.
 
-    A folder must be a run folder (hold problem.toml); ``run_required`` refuses files."""
-    run, at, it = str(text).partition("@")
+    A folder must be a run folder (hold problem.toml); ``run_required`` refuses files.  A path
+    that exists is taken whole ('v@2/run'); else ITERATION follows the last '@'."""
+    text = str(text)
+    run, at, it = ("", "", "") if Path(text).exists() else text.rpartition("@")
+    if not at:
+        run = text
     path = Path(run)
     if path.is_dir():
         if not (path / "problem.toml").is_file():
             raise KgarmentError(f"{path} is not a run folder (no problem.toml); give RUN or RUN@ITERATION")
-        if at and not it.isdigit():
-            raise KgarmentError(f"iteration {it!r} in {text!r} must be a number")
+        if at and not (it.isascii() and it.isdigit()):
+            raise KgarmentError(f"iteration {it!r} in {text!r} must be a whole number from 0 "
+                                f"(RUN@0 is the fully reinforced garment)")
         return DesignSource(run=path, iteration=int(it) if at else None)
     if run_required or at:
         raise KgarmentError(f"{text!r} is not a run folder; give RUN or RUN@ITERATION")

@@ -12,7 +12,6 @@ the shared design keeps at least :data:`KEEP` of every own design's rho ON.
 
 from __future__ import annotations
 
-import json
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -22,8 +21,8 @@ from kgarment.design.driver import finish, open_run
 from kgarment.design.run import run_status
 from kgarment.design.wearers import split_key, wearer_key, wearer_problem
 from kgarment.errors import KgarmentError
-from kgarment.io import atomic_write_text, json_text
-from kgarment.problem import Problem
+from kgarment.io import atomic_write_text, check_kind, json_text, mark_folder, read_json_object
+from kgarment.problem import Problem, load_problem
 
 log = logging.getLogger(__name__)
 KEEP = 0.80  # the shared design keeps at least this share of each own design's rho ON
@@ -61,10 +60,17 @@ def run_sizes(problem: Problem, out, *, device: str = "cpu", force: bool = False
     if not names:
         raise KgarmentError("kgarment sizes needs a multi-body problem: [body] phenotypes = [{name = ...}, ...] "
                             "(e.g. the example shirt_sizes)")
-    out = Path(out)
+    out = check_kind(out, "sizes", legacy=("sizes.json", "runs"))
+    fresh = not out.exists() or not any(out.iterdir())
     runs = out / "runs"
-    runs.mkdir(parents=True, exist_ok=True)
     jobs = [(SHARED, problem)] + [(n, wearer_problem(problem, n)) for n in names]
+    if not force:  # before any work: a kept run of another problem is never reported as this one's
+        for name, p in jobs:
+            if run_status(runs / name) != "new":
+                _check_same(p, runs / name)
+    runs.mkdir(parents=True, exist_ok=True)
+    if fresh:
+        mark_folder(out, "sizes")
     for name, p in jobs:
         _design(p, runs / name, device, force, None if progress is None else progress(name))
     doc = compare(runs, names, list(problem.motions))
@@ -84,11 +90,27 @@ def _design(problem: Problem, folder: Path, device: str, force: bool, progress) 
     finish(dr, progress=progress)
 
 
+def _check_same(problem: Problem, folder: Path) -> None:
+    """A kept run (finished or not) must have been made for ``problem``: the same body,
+    motions, garment, clutches, materials, design and solver settings, else one line."""
+    old = load_problem(folder / "problem.toml")
+    differ = [what for what in ("body", "motions", "garment", "materials", "design", "solver")
+              if getattr(old, what) != getattr(problem, what)]
+    if old.clutch_spec().hardware != problem.clutch_spec().hardware:
+        differ.append("clutch hardware")
+    if differ:
+        raise KgarmentError(f"{folder} was designed for another problem (its {', '.join(differ)} differ); "
+                            "use --force to design every size again, or give another --out")
+
+
 def _evaluation(run: Path) -> dict:
     path = run / "final" / "evaluation.json"
     if not path.is_file():
         raise KgarmentError(f"{run} has no final evaluation; run kgarment evaluate {run} --json ... or resume it")
-    return json.loads(path.read_text())
+    try:
+        return read_json_object(path, "final evaluation", ("rho",))
+    except KgarmentError as exc:
+        raise KgarmentError(f"{exc}; run kgarment evaluate {run} --json ... or design it again (--force)") from None
 
 
 def _properties(ev: dict, motions: list[str], wearer: str | None = None) -> dict:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from kgarment import constants as C
 from kgarment.body import Motion, MotionLibrary, Phenotype, Rotation
-from kgarment.body.motions import NAMED_AXES
+from kgarment.body.motions import NAMED_AXES, builtin_motions
 from kgarment.clutch import clutch_spec_from_record
 from kgarment.clutch.layouts import LAYOUTS
 from kgarment.errors import KgarmentError, unknown
@@ -49,7 +49,9 @@ def load_problem(path) -> Problem:
         raise KgarmentError(f"problem file {path} is a folder; give a .toml file" if path.is_dir()
                             else f"problem file not found: {path}")
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise KgarmentError(f"problem file {path} is not UTF-8 text (TOML is)") from None
     except tomllib.TOMLDecodeError as exc:
         raise KgarmentError(f"problem file {path} is not valid TOML: {exc}") from None
     return parse_problem(data, path.parent, path)
@@ -148,6 +150,9 @@ def _body(b: dict, base: Path) -> BodySpec:
         return BodySpec("anny", Phenotype.from_dict(b.get("phenotype", {})))
     if "rest" not in b or "motions" not in b:
         raise KgarmentError("[body] model = 'meshes' needs rest = FILE and motions = {name = FILE}")
+    if not isinstance(b["motions"], dict) or not all(isinstance(v, str) for v in b["motions"].values()):
+        raise KgarmentError("[body] motions must be a table of mesh files, e.g. motions = { arms_raise = "
+                            "\"raise.obj\" }")
     meshes = tuple((k, _path(base, v, f"body.motions.{k}")) for k, v in b["motions"].items())
     return BodySpec("meshes", Phenotype(), _path(base, b["rest"], "body.rest"),
                     _path(base, b["rig"], "body.rig") if "rig" in b else None, meshes)
@@ -210,6 +215,12 @@ def _finite(v) -> bool:
 
 def _user_motion(name: str, d: dict) -> Motion:
     where = f"motions.define.{name}"
+    if not C.NAME.fullmatch(name):
+        raise KgarmentError(f"[motions.define]: motion name {name!r}; allowed: letters, digits, _ . + - (at most "
+                            "64, not starting with . + -; file names are made of it)")
+    if name in builtin_motions():
+        raise KgarmentError(f"[{where}]: {name!r} is a built-in motion (kgarment motions lists them); give yours "
+                            "another name")
     check_keys(where, d, ("rotations", "keyframes", "description"))
     if ("rotations" in d) == ("keyframes" in d):
         raise KgarmentError(f"[{where}]: give either rotations or keyframes")
@@ -290,7 +301,11 @@ def _garment(g: dict, base: Path) -> GarmentSpec:
     check_keys("garment", g, ("template", "mask", "attach", "subdivision"))
     sub = _subdivision(g.get("subdivision", 1))
     if "mask" in g:
-        return GarmentSpec(None, _path(base, g["mask"], "garment.mask"), tuple(g.get("attach", ())), sub)
+        attach = g.get("attach", [])
+        if not isinstance(attach, list) or not all(isinstance(a, str) for a in attach):
+            raise KgarmentError(f"[garment] attach = {attach!r} must be a list of attachment loop names, e.g. "
+                                "attach = [\"wrist.R\"]")
+        return GarmentSpec(None, _path(base, g["mask"], "garment.mask"), tuple(attach), sub)
     t = g.get("template", "short_sleeve_shirt")
     if t not in template_names():
         raise unknown("garment", t, template_names())

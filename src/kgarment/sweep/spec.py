@@ -91,9 +91,11 @@ def load_sweep(path) -> Sweep:
     path = Path(path)
     if not path.is_file():
         raise KgarmentError(f"sweep file not found: {path}")
-    text = path.read_text()
     try:
+        text = path.read_text(encoding="utf-8")
         doc = tomllib.loads(text)
+    except UnicodeDecodeError:
+        raise KgarmentError(f"sweep file {path} is not UTF-8 text (TOML is)") from None
     except tomllib.TOMLDecodeError as exc:
         raise KgarmentError(f"sweep file {path} is not valid TOML: {exc}") from None
     where = f"sweep file {path}"
@@ -156,7 +158,9 @@ def _base(doc: dict, path: Path) -> tuple[dict, Path, Path | None, str]:
 
 def _read_problem(file: Path, where: str) -> dict:
     try:
-        return tomllib.loads(file.read_text())
+        return tomllib.loads(file.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise KgarmentError(f"{where}: problem file {file} is not UTF-8 text (TOML is)") from None
     except tomllib.TOMLDecodeError as exc:
         raise KgarmentError(f"{where}: problem file {file} is not valid TOML: {exc}") from None
 
