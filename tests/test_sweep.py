@@ -255,3 +255,17 @@ def test_help_does_not_import_ray():
             "print('ray' in sys.modules, 'kgarment.sweep' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.split() == ["False", "False"]
+
+
+def test_dry_run_refuses_what_the_run_would(tmp_path, capsys):
+    """--dry-run checks --out as the sweep itself does: a file, a folder of the user's."""
+    (tmp_path / "sleeve.toml").write_text(SLEEVE)
+    (tmp_path / "s.toml").write_text(SWEEP)
+    (tmp_path / "afile").write_text("mine")
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("mine")
+    for out, message in (("afile", "is a file, not a folder"), ("mine", "a folder of files kgarment did not write")):
+        assert main(["sweep", str(tmp_path / "s.toml"), "--out", str(tmp_path / out), "--dry-run"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and message in err, err
+    assert (tmp_path / "afile").read_text() == "mine" and [p.name for p in (tmp_path / "mine").iterdir()] == ["notes.txt"]

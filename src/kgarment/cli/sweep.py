@@ -19,13 +19,13 @@ def cmd_sweep(args) -> int:
                             "its own (ray start --num-cpus)")
     sweep = load_sweep(args.sweep)  # every task validated before anything runs
     out = Path(args.out) if args.out else Path("runs") / "sweeps" / sweep.path.stem
+    folder = open_folder(sweep, out, args.force, write=False)  # refusals before Ray starts (and in a dry run)
     if args.dry_run:
         print(f"{len(sweep.tasks)} tasks of {sweep.base} (axes: {', '.join(sweep.axes) or 'none'}); run folders "
               f"would go to {out / 'runs'}:")
         for t in sweep.tasks:
             print(f"  {t.name:40s} " + ", ".join(f"{k} = {v!r}" for k, v in t.values))
         return 0
-    folder = open_folder(sweep, out, args.force, write=False)  # refusals before Ray starts
     from kgarment.design.run import run_status
 
     todo = [t for t in sweep.tasks if t.name in folder.replace or run_status(folder.run(t.name)) != "finished"]
