@@ -31,7 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from kgarment.design.beso import design_values
-from kgarment.design.loop import LoopState, iterate
+from kgarment.design.loop import FULL, LoopState, iterate
 from kgarment.design.run import load_checkpoint, run_status, save_checkpoint
 from kgarment.design.setup import DesignSetup
 from kgarment.errors import Cancelled
@@ -82,7 +82,8 @@ def transfer(coarse_setup: DesignSetup, coarse: LoopState, fine_setup: DesignSet
     S = vertex_map(cm.garment_faces, cm.n_garment, fm.n_faces)
     warm = dict(fine.warm)
     for name, x in coarse.warm.items():
-        if name in warm:  # the same state (motion x activation) at both levels
+        if name in warm and not name.endswith(FULL):  # the same state at both levels (the fully
+            # reinforced garment's equilibria, a skin_start run's FULL starts, are the fine level's own)
             warm[name] = fm.initial_positions(S @ np.asarray(x)[: cm.n_garment])
     alpha = None if coarse.alpha_prev is None else np.asarray(coarse.alpha_prev)[parent]
     design = design_values(np.asarray(coarse.design)[parent] > 0.5)
