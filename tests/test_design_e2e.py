@@ -190,7 +190,9 @@ def test_a_design_on_another_body(runs, capsys):
     assert "on another body (phenotype: weight 0.9, height 0.2" in capsys.readouterr().out
     for bad, message in (("weight=2", "phenotype weight = 2.0 is outside [0, 1]"),
                          ("waist=0.3", "unknown phenotype parameter 'waist'"),
-                         ("weight=heavy", "'heavy' is not a number")):
+                         ("weight=heavy", "'heavy' is not a number"),
+                         ("weight=0.5,weight=0.6", "gives weight more than once"),
+                         (",,", "changes nothing")):
         assert main(["-q", "evaluate", str(cli), "--phenotype", bad]) == 2
         err = capsys.readouterr().err
         assert message in err and err.count("\n") == 1

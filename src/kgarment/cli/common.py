@@ -159,7 +159,14 @@ def parse_phenotype(text: str, base):
     from kgarment.body import Phenotype
 
     fields = dataclasses.asdict(base)
-    for item in filter(None, (x.strip() for x in text.split(","))):
+    items = [x.strip() for x in text.split(",") if x.strip()]
+    if not items:
+        raise KgarmentError(f"--phenotype {text!r} changes nothing; give FIELD=VALUE,..., e.g. weight=0.8")
+    given = [i.partition("=")[0].strip() for i in items]
+    twice = next((k for k in given if given.count(k) > 1), None)
+    if twice is not None:
+        raise KgarmentError(f"--phenotype {text!r} gives {twice} more than once")
+    for item in items:
         key, sep, value = item.partition("=")
         try:
             fields[key.strip()] = float(value) if sep else None
