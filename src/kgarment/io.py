@@ -256,6 +256,32 @@ def _check_parent(path: Path, candidates, flag: str) -> None:
         raise KgarmentError(f"{flag} {path}: cannot write into {parent} ({exc.strerror or exc})") from None
 
 
+def read_toml(path, what: str) -> tuple[str, dict]:
+    """The text and the parsed tables of the TOML file ``path`` (a ``what``, e.g. "problem
+    file"); not UTF-8 or not valid TOML -> one KgarmentError naming the file."""
+    import tomllib
+
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+        return text, tomllib.loads(text)
+    except UnicodeDecodeError:
+        raise KgarmentError(f"{what} {path} is not UTF-8 text (TOML is)") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise KgarmentError(f"{what} {path} is not valid TOML: {exc}") from None
+
+
+def make_folder(path, kind: str) -> Path:
+    """Create the output folder ``path`` (checked by :func:`check_kind`) and mark it as a
+    ``kind`` folder when kgarment makes it (missing or empty); one the user had filled, or an
+    older kgarment folder without a marker, is left unmarked."""
+    path = Path(path)
+    fresh = not path.exists() or _empty(path)
+    path.mkdir(parents=True, exist_ok=True)
+    if fresh:
+        mark_folder(path, kind)
+    return path
+
+
 def read_json_object(path, what: str, keys=()) -> dict:
     """The JSON object in ``path`` (a kgarment ``what``, e.g. "final evaluation") holding
     ``keys``; missing, unreadable, not JSON, not an object or lacking a key -> one

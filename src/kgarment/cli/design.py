@@ -144,10 +144,7 @@ def cmd_sizes(args) -> int:
     if not problem.body.names:
         raise KgarmentError(f"{args.problem}: kgarment sizes needs a multi-body problem ([body] phenotypes = "
                             f"[{{name = ...}}, ...], e.g. the example {SIZES_EXAMPLE})")
-    from kgarment.io import check_output_folder
-
-    check_output_folder(args.out)
-    motions = list(problem.motions)
+    motions = list(problem.motions)  # run_sizes checks --out before any work
     print(f"wearers: {', '.join(problem.body.names)}; motions: {', '.join(motions)}; runs in {args.out}/runs")
     total = expected_iterations(problem.design.beso)
     bars = contextlib.ExitStack()

@@ -11,7 +11,7 @@ def cmd_simulate(args) -> int:
 
     from kgarment.design import Evaluator, load_design
     from kgarment.design.report import write_equilibrium
-    from kgarment.io import check_kind, mark_folder
+    from kgarment.io import check_kind, make_folder
     from kgarment.problem import build_body, build_clutches, build_garment
     from kgarment.sim import clutch_tensions
     from kgarment.sim.slip import slides
@@ -23,7 +23,6 @@ def cmd_simulate(args) -> int:
     # a folder kgarment did not make is written into only when empty (or holding results of
     # a simulation made before folders were marked: its motions' .ply files)
     out = check_kind(args.out, "simulation", legacy=tuple(f"{m}.ply" for m in motions))
-    fresh = not out.exists() or not any(out.iterdir())  # marked below only if kgarment makes it
     if any((out / f"{m}.ply").exists() for m in motions) and not args.force:
         raise KgarmentError(f"{out} already holds results; use --force to overwrite them")
     body = build_body(p)
@@ -37,9 +36,7 @@ def cmd_simulate(args) -> int:
     print(f"solver: {ev.setup.solver.method}, tolerance {ev.setup.solver.tol:g}, materials {p.materials.preset}, "
           f"clutches {p.clutch_spec().hardware.model}")
     hold = ev.setup.model.holding(g)
-    out.mkdir(parents=True, exist_ok=True)
-    if fresh:
-        mark_folder(out, "simulation")
+    make_folder(out, "simulation")  # only now, after the solves: a failed simulation leaves no folder
     for ((m, _), state), r in zip(keyed, results):
         w = ev.setup.wearers.get(m)  # a multi-body problem's: this wearer's body and garment
         on, pose, model = (body, m, ev.setup.model) if w is None else (w.body, w.motion, w.model)

@@ -51,9 +51,9 @@ def parse_design_source(text: str, run_required: bool = False) -> DesignSource:
     A folder must be a run folder (hold problem.toml); ``run_required`` refuses files.  A path
     that exists is taken whole ('v@2/run'); else ITERATION follows the last '@'."""
     text = str(text)
-    run, at, it = ("", "", "") if Path(text).exists() else text.rpartition("@")
-    if not at:
-        run = text
+    run, at, it = text, "", ""
+    if "@" in text and not Path(text).exists():
+        run, at, it = text.rpartition("@")
     path = Path(run)
     if path.is_dir():
         if not (path / "problem.toml").is_file():

@@ -21,7 +21,7 @@ from kgarment.design.driver import finish, open_run
 from kgarment.design.run import run_status
 from kgarment.design.wearers import split_key, wearer_key, wearer_problem
 from kgarment.errors import KgarmentError
-from kgarment.io import atomic_write_text, check_kind, json_text, mark_folder, read_json_object
+from kgarment.io import atomic_write_text, check_kind, json_text, make_folder, read_json_object
 from kgarment.problem import Problem, load_problem
 
 log = logging.getLogger(__name__)
@@ -61,16 +61,13 @@ def run_sizes(problem: Problem, out, *, device: str = "cpu", force: bool = False
         raise KgarmentError("kgarment sizes needs a multi-body problem: [body] phenotypes = [{name = ...}, ...] "
                             "(e.g. the example shirt_sizes)")
     out = check_kind(out, "sizes", legacy=("sizes.json", "runs"))
-    fresh = not out.exists() or not any(out.iterdir())
     runs = out / "runs"
     jobs = [(SHARED, problem)] + [(n, wearer_problem(problem, n)) for n in names]
     if not force:  # before any work: a kept run of another problem is never reported as this one's
         for name, p in jobs:
             if run_status(runs / name) != "new":
                 _check_same(p, runs / name)
-    runs.mkdir(parents=True, exist_ok=True)
-    if fresh:
-        mark_folder(out, "sizes")
+    (make_folder(out, "sizes") / "runs").mkdir(exist_ok=True)
     for name, p in jobs:
         _design(p, runs / name, device, force, None if progress is None else progress(name))
     doc = compare(runs, names, list(problem.motions))

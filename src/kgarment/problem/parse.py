@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import asdict
 from pathlib import Path
 
@@ -19,6 +18,7 @@ from kgarment.clutch import clutch_spec_from_record
 from kgarment.clutch.layouts import LAYOUTS
 from kgarment.errors import KgarmentError, unknown
 from kgarment.garment import template_names
+from kgarment.io import read_toml
 from kgarment.problem.serialize import problem_to_dict  # noqa: F401 (re-exported)
 from kgarment.problem.spec import (
     COMBINE_NAMES,
@@ -48,12 +48,7 @@ def load_problem(path) -> Problem:
     if not path.is_file():
         raise KgarmentError(f"problem file {path} is a folder; give a .toml file" if path.is_dir()
                             else f"problem file not found: {path}")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise KgarmentError(f"problem file {path} is not UTF-8 text (TOML is)") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise KgarmentError(f"problem file {path} is not valid TOML: {exc}") from None
+    _, data = read_toml(path, "problem file")
     return parse_problem(data, path.parent, path)
 
 

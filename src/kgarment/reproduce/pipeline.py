@@ -29,7 +29,7 @@ from kgarment.constants import SIM_MODEL
 from kgarment.design import design_values
 from kgarment.design.run import other_model
 from kgarment.errors import KgarmentError
-from kgarment.io import atomic_write_text, json_text, mark_folder
+from kgarment.io import atomic_write_text, json_text, make_folder
 from kgarment.render import faces_near, render_design
 from kgarment.reproduce.baselines import anchor_rings, manual_design, random_design
 from kgarment.reproduce.catalog import objectives_at_target
@@ -230,12 +230,9 @@ def reproduce(out: Path, resolution: str = "preview", experiments: str | None = 
     (:func:`kgarment.reproduce.experiments.experiment_problem`)."""
     res = RESOLUTIONS[resolution]
     exps = select(experiments)
-    out = Path(out)
-    fresh = not out.exists() or not any(out.iterdir())
+    out = make_folder(out, "reproduction")  # marked when kgarment makes it (never a folder the user had filled)
     for sub in ("runs", "img", "designs"):
         (out / sub).mkdir(parents=True, exist_ok=True)
-    if fresh:  # a folder kgarment made: marked (never a folder the user had filled)
-        mark_folder(out, "reproduction")
     cache = EvaluationCache(out / "evaluations.json")
     t0 = time.time()
     old = previous_results(out, res, overrides)

@@ -37,11 +37,11 @@ import itertools
 import json
 import math
 import re
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 from kgarment.errors import KgarmentError
+from kgarment.io import read_toml
 from kgarment.problem import Problem, example_path, parse_problem
 
 SWEEP_KEYS = ("problem", "example", "set", "grid", "runs")
@@ -91,13 +91,7 @@ def load_sweep(path) -> Sweep:
     path = Path(path)
     if not path.is_file():
         raise KgarmentError(f"sweep file not found: {path}")
-    try:
-        text = path.read_text(encoding="utf-8")
-        doc = tomllib.loads(text)
-    except UnicodeDecodeError:
-        raise KgarmentError(f"sweep file {path} is not UTF-8 text (TOML is)") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise KgarmentError(f"sweep file {path} is not valid TOML: {exc}") from None
+    text, doc = read_toml(path, "sweep file")
     where = f"sweep file {path}"
     bad = sorted(set(doc) - set(SWEEP_KEYS))
     if bad:
@@ -158,11 +152,9 @@ def _base(doc: dict, path: Path) -> tuple[dict, Path, Path | None, str]:
 
 def _read_problem(file: Path, where: str) -> dict:
     try:
-        return tomllib.loads(file.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise KgarmentError(f"{where}: problem file {file} is not UTF-8 text (TOML is)") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise KgarmentError(f"{where}: problem file {file} is not valid TOML: {exc}") from None
+        return read_toml(file, "problem file")[1]
+    except KgarmentError as exc:
+        raise KgarmentError(f"{where}: {exc}") from None
 
 
 def fields(table, where: str) -> list[tuple[tuple, object]]:
