@@ -242,14 +242,13 @@ def test_a_start_that_stopped_below_the_kept_equilibrium_is_solved_on():
     (stopped,) = setup.solve(st.design, states, options=dataclasses.replace(opts, max_iter=2, rescue_shifts=0,
                                                                              on_fail="info"))
     assert eq.converged and not stopped.converged and stopped.total_energy > eq.total_energy
-    stopped = dataclasses.replace(stopped, name=states[0].name + "@skin-tight")
     # it stopped above the equilibrium: kept as it is
-    out, more = _continue_lower(setup, st.design, states, [eq], [stopped], opts)
+    out, more = _continue_lower(setup, st.design, states, [eq], [(0, stopped)], opts)
     assert out == [eq] and more == []
     # a converged solution of higher energy than where the start stopped (another basin's
     # stand-in): the start is solved on to the equilibrium below and kept
     high = dataclasses.replace(eq, energy={k: 3 * v + stopped.total_energy for k, v in eq.energy.items()})
-    (out,), more = _continue_lower(setup, st.design, states, [high], [stopped], opts)
+    (out,), more = _continue_lower(setup, st.design, states, [high], [(0, stopped)], opts)
     assert len(more) == 1 and more[0].converged and out.name == states[0].name
     assert out.total_energy == pytest.approx(eq.total_energy, rel=1e-4)
     assert np.allclose(out.x, eq.x, atol=1e-4)

@@ -162,7 +162,8 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
                    for s, w, c in zip(states, both[:n], both[n:2 * n])]
         for j, i in enumerate(has):
             results[i] = pick_equilibrium(results[i], dataclasses.replace(both[2 * n + j], name=states[i].name)).result
-        results, more = _continue_lower(setup, st.design, states, results, both[n:], opts)
+        others = list(enumerate(both[n:2 * n])) + [(i, both[2 * n + j]) for j, i in enumerate(has)]
+        results, more = _continue_lower(setup, st.design, states, results, others, opts)
         both = both + more
     else:
         results = both = setup.solve(st.design, states, warm_start=warm, options=opts)
@@ -185,19 +186,18 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
 
 
 def _continue_lower(setup: DesignSetup, design: np.ndarray, states: list[SimState], results: list[StateResult],
-                    others: list[StateResult], opts) -> tuple[list[StateResult], list[StateResult]]:
+                    others: list[tuple[int, StateResult]], opts) -> tuple[list[StateResult], list[StateResult]]:
     """A start whose solve ran out of iterations below the kept equilibrium's energy (by more
     than MULTISTABLE; Newton only descends, so a lower basin is there) is solved on from
     where it stopped, and kept if it converges lower: the evaluator, at its tolerance and
     with its rescues, finds that basin, so the run must not keep the higher equilibrium.
     Measured on the arm-flexion sleeve (preview, 2026-11-28): the skin-tight start stopped at
     200 Newton iterations in most iterations at the target area; the run's metrics said rho
-    ON 1.74 where the evaluator found 0.20.  Returns the results and the extra solves."""
-    idx = {s.name: i for i, s in enumerate(states)}
+    ON 1.74 where the evaluator found 0.20.  ``others``: (state index, its solve from another
+    start).  Returns the results and the extra solves."""
     best: dict[int, StateResult] = {}
-    for r in others:  # named state + "@skin-tight" or + FULL
-        i = idx.get(r.name.removesuffix("@skin-tight").removesuffix(FULL))
-        if i is None or r.converged or not results[i].converged:
+    for i, r in others:
+        if r.converged or not results[i].converged:
             continue
         if r.total_energy < results[i].total_energy * (1 - MULTISTABLE) and \
                 (i not in best or r.total_energy < best[i].total_energy):
