@@ -96,6 +96,10 @@ PROBLEMS = [
     ('[garment]\nmask = "p.toml"\nattach = 5\n', "[garment] attach = 5 must be a list of attachment loop names"),
     ('[garment]\nmask = "p.toml"\nattach = "wrist"\n', "attach = 'wrist' must be a list"),
     ('[body]\nmodel = "meshes"\nrest = "p.toml"\nmotions = "abc"\n', "[body] motions must be a table of mesh files"),
+    ('[garment]\nmask = "."\n', "is a folder, not a file"),
+    ('[body]\nmodel = "meshes"\nrest = "."\nmotions = {}\n', "is a folder, not a file"),
+    (ROT.replace("rotations =", "description = 5\nrotations =") % 'axis = "x", degrees = 30',
+     "[motions.define.w] description = 5: must be a string"),
 ]
 
 

@@ -104,6 +104,20 @@ def test_a_damaged_entry_is_solved_again_with_a_warning(stored, tmp_path, caplog
     assert _numbers(again) == _numbers(first)  # solved again: the same equilibrium
 
 
+def test_a_store_that_cannot_be_written_warns_once_and_the_numbers_stand(stored, tmp_path, caplog):
+    """A file where the store's folder goes (a user's RUN/equilibria): every solve is still
+    made and the numbers are the stored run's, with one warning, not one per solve."""
+    _, design, first = stored
+    blocked = tmp_path / "equilibria"
+    blocked.write_text("a user's file")
+    ev, _ = _evaluator(EquilibriumStore(blocked))
+    with caplog.at_level(logging.WARNING, logger="kgarment.design.store"):
+        again = ev.evaluate(design, loads=True)
+    assert caplog.text.count("could not write") == 1
+    assert blocked.read_text() == "a user's file"
+    assert _numbers(again) == _numbers(first)
+
+
 def test_content_digest_sees_arrays_and_fields():
     a = np.arange(6.0)
     b = a.copy()

@@ -192,6 +192,7 @@ class EquilibriumStore:
         self.folder = Path(folder)
         self.converged_only = converged_only
         self.hits = self.misses = self.borrowed = 0
+        self.unwritable = False  # a write failed: reported once, no more tried
         self._digests: dict[int, tuple[weakref.ref, str]] = {}  # id -> (a reference to the object, its digest)
 
     def solve(self, setup, design: np.ndarray, states: list, warm_start, options,
@@ -265,13 +266,15 @@ class EquilibriumStore:
     def put(self, key: tuple, value: StateResult) -> None:
         """Keep ``value`` under ``key`` (a failure to write is reported, not raised: the
         store only saves time)."""
-        if self.converged_only and not value.converged:
+        if self.unwritable or (self.converged_only and not value.converged):
             return
         path = self._file(key)
         try:
             atomic_save_npz(path, **_fields(value))
         except OSError as exc:
-            log.warning("equilibrium store: could not write %s (%s)", path, exc)
+            self.unwritable = True
+            log.warning("equilibrium store: could not write %s (%s); solving on without keeping solves there",
+                        path, exc)
 
 
 def _fields(r: StateResult) -> dict:

@@ -184,6 +184,8 @@ def load_face_mask(path, n_faces: int) -> np.ndarray:
     from pathlib import Path
 
     path = Path(path)
+    if path.is_dir():
+        raise KgarmentError(f"face mask {path} is a folder, not a file (.npy, .npz or .txt)")
     if not path.is_file():
         raise KgarmentError(f"face mask file not found: {path}")
     try:

@@ -127,6 +127,8 @@ def _path(base: Path, p, what: str) -> Path:
     q = q if q.is_absolute() else base / q
     if not q.exists():
         raise KgarmentError(f"{what}: file not found: {q}")
+    if q.is_dir():
+        raise KgarmentError(f"{what}: {q} is a folder, not a file")
     return q
 
 
@@ -227,7 +229,10 @@ def _user_motion(name: str, d: dict) -> Motion:
     kfs = tuple(tuple(_rotation(r, where) for r in kf) for kf in frames)
     if not kfs or not all(kfs):
         raise KgarmentError(f"[{where}]: a motion needs at least one rotation")
-    return Motion(name, kfs, str(d.get("description", "user motion")))
+    description = d.get("description", "user motion")
+    if not isinstance(description, str):
+        raise KgarmentError(f"[{where}] description = {description!r}: must be a string")
+    return Motion(name, kfs, description)
 
 
 def _motions(m: dict, body: BodySpec) -> tuple[tuple[Motion, ...], tuple[str, ...]]:
