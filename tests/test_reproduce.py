@@ -45,6 +45,48 @@ def test_manual_strip_runs_straight_to_the_nearest_attachment():
     assert abs(areas[d].sum() / areas.sum() - 0.06) <= areas.max() / areas.sum()
 
 
+def test_limb_bands_close_around_the_upper_arms_of_a_long_sleeve_only(anny_body):
+    """A long sleeve is held at the wrists, so a designer bands the upper arms: one band per
+    arm across the middle of the upper arm, closing around it (taking its faces out cuts the
+    sleeve from the shirt: the cuff is no longer joined to the hem). The short sleeves' cuffs
+    and the arm sleeve's attached ring already hold their upper arms: no band there."""
+    import dataclasses
+
+    from scipy.sparse.csgraph import connected_components
+
+    from kgarment.garment import make_garment
+    from kgarment.garment.topology import face_adjacency
+    from kgarment.reproduce.baselines import BAND_WIDTH, anchor_rings
+
+    g = make_garment(anny_body, "long_sleeve_shirt", 0)
+    plain, _ = anchor_rings(g)
+    rings, held = anchor_rings(g, anny_body)
+    assert plain == [] and len(rings) == 2 and held.any()
+    names = list(anny_body.bone_names)
+    adj = face_adjacency(g.faces).tocsr()
+    hem = np.flatnonzero(np.isin(g.faces, g.loops["hem"]).any(axis=1))
+    centre = g.rest_vertices[g.faces].mean(axis=1)
+    for side in "LR":
+        p0 = anny_body.rest_joints[names.index(f"upperarm01.{side}")]
+        p1 = anny_body.rest_joints[names.index(f"lowerarm01.{side}")]
+        cuff = np.flatnonzero(np.isin(g.faces, g.loops[f"cuff.{side}"]).any(axis=1))
+        near = [b for b in rings if np.linalg.norm(centre[b].mean(0) - (p0 + p1) / 2) < 0.1]
+        assert len(near) == 1
+        band = near[0]
+        along = (centre[band] - p0) @ (p1 - p0) / np.linalg.norm(p1 - p0)
+        assert np.all(np.abs(along - np.linalg.norm(p1 - p0) / 2) <= BAND_WIDTH / 2)
+        keep = np.setdiff1d(np.arange(len(g.faces)), band)
+        _, label = connected_components(adj[keep][:, keep], directed=False)
+        where = np.full(len(g.faces), -1)
+        where[keep] = label
+        assert not np.isin(where[cuff], where[hem]).any()  # the band cuts the sleeve through
+    for name in ("short_sleeve_shirt", "arm_sleeve.right"):
+        other = make_garment(anny_body, name, 0)
+        assert [len(r) for r in anchor_rings(other, anny_body)[0]] == [len(r) for r in anchor_rings(other)[0]]
+    unrigged = dataclasses.replace(anny_body, bone_names=())
+    assert anchor_rings(g, unrigged)[0] == []
+
+
 def test_manual_strips_reach_a_free_ring_never_their_own_clutch():
     """A clutch across the middle of a sheet whose top edge is a free opening (a cuff): both
     ends run to the ring, which is drawn all along; neither end's strip ends on the other's."""

@@ -2,7 +2,8 @@
 
 * :func:`manual_design`: what a designer draws (the paper's participants did): a strip of
   reinforcement from each clutch end to where the body pulls the garment -- an attachment
-  ring or a band around a limb opening (the short-sleeve shirt's cuffs), or a strip already
+  ring, a band around a limb opening (the short-sleeve shirt's cuffs) or around a limb that
+  nothing else holds (a long sleeve's upper arms, :func:`limb_bands`), or a strip already
   so anchored (another clutch's, when less than half as far) -- along the shortest path over the garment (Dijkstra on
   the face adjacency graph, edge weights = distances between face centroids), the band a
   strip reaches drawn all around the limb, then everything widened evenly (faces in order
@@ -153,16 +154,75 @@ def _strip_target(graph: sp.csr_matrix, start: np.ndarray, anchor: np.ndarray, o
     return None
 
 
-def anchor_rings(garment) -> tuple[list[np.ndarray], np.ndarray]:
+def anchor_rings(garment, body=None) -> tuple[list[np.ndarray], np.ndarray]:
     """Where the body pulls ``garment``: per free named opening (the short sleeves' cuffs;
-    not the neck, an unnamed ``opening``), the (b,) faces along it; and (m,) bool its
+    not the neck, an unnamed ``opening``), the (b,) faces along it, then with a rigged
+    ``body`` the :func:`limb_bands` of the limbs that hold no anchor; and (m,) bool its
     attached faces (attachment rings)."""
     rings = []
     for name, loop in garment.loops.items():
         along = np.flatnonzero(np.isin(garment.faces, loop).any(axis=1))
         if not name.startswith("opening") and not garment.attached[along].any():
             rings.append(along)
-    return rings, np.asarray(garment.attached, bool)
+    held = np.asarray(garment.attached, bool)
+    if body is not None:
+        rings += limb_bands(garment, body, held, rings)
+    return rings, held
+
+
+# Limb segments a designer bands: name -> (the bones covering it, the joint at its far end).
+# Anny's names; a rig without them gets no bands.
+LIMBS = {f"upper arm.{s}": ((f"upperarm01.{s}", f"upperarm02.{s}"), f"lowerarm01.{s}") for s in "LR"}
+BAND_WIDTH = 0.05  # m, along the limb
+BAND_GAP = np.pi / 3  # rad: a band leaving a wider gap round the limb does not close around it
+
+
+def limb_bands(garment, body, held: np.ndarray, rings=()) -> list[np.ndarray]:
+    """Bands a designer wraps around a limb the garment covers all round but where nothing
+    holds it (a long sleeve's upper arm: its cuffs are at the wrists): per segment of
+    :data:`LIMBS` whose faces (those whose body face the segment's bones move most) hold no
+    attached face and no ring of ``rings``, the (b,) faces of a :data:`BAND_WIDTH` slab
+    across its middle (rest pose), when they close around it (no angular gap over
+    :data:`BAND_GAP`).  garment : a :class:`~kgarment.garment.Garment` on ``body`` (rigged
+    :class:`~kgarment.body.Body`);  held : (m,) bool attached faces;  rings : (b,) face arrays."""
+    if not body.rigged:
+        return []
+    names = list(body.bone_names)
+    # (m, B) share of each bone in the skinning of the body face under each garment face
+    tri = body.faces[garment.body_face]
+    weight = np.zeros((len(garment.faces), len(names)))
+    rows = np.repeat(np.arange(len(garment.faces)), tri.shape[1] * body.skin_indices.shape[1])
+    np.add.at(weight, (rows, body.skin_indices[tri].reshape(-1)), body.skin_weights[tri].reshape(-1))
+    weight /= np.maximum(weight.sum(axis=1, keepdims=True), 1e-12)
+    anchored = np.asarray(held, bool).copy()
+    for r in rings:
+        anchored[np.asarray(r, dtype=int)] = True
+    centre = garment.rest_vertices[garment.faces].mean(axis=1)
+    bands = []
+    for bones, end in LIMBS.values():
+        if not all(b in names for b in (*bones, end)):
+            continue
+        on = weight[:, [names.index(b) for b in bones]].sum(axis=1) > 0.5  # the segment's faces
+        if not on.any() or anchored[on].any():
+            continue
+        p0, p1 = body.rest_joints[names.index(bones[0])], body.rest_joints[names.index(end)]
+        axis = (p1 - p0) / np.linalg.norm(p1 - p0)
+        along = (centre - p0) @ axis
+        band = np.flatnonzero(on & (np.abs(along - 0.5 * np.linalg.norm(p1 - p0)) <= BAND_WIDTH / 2))
+        if len(band) >= 3 and _closes_around(centre[band] - p0, axis):
+            bands.append(band)
+    return bands
+
+
+def _closes_around(points: np.ndarray, axis: np.ndarray) -> bool:
+    """Whether (k, 3) ``points`` go all round the line through the origin along unit ``axis``:
+    no gap between their angles about it wider than :data:`BAND_GAP`."""
+    e1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    ang = np.sort(np.arctan2(points @ e2, points @ e1))
+    gaps = np.diff(np.concatenate([ang, ang[:1] + 2 * np.pi]))
+    return bool(gaps.max() <= BAND_GAP)
 
 
 def random_design(vertices: np.ndarray, faces: np.ndarray, budget: float, seed: int, passes: int = 8,

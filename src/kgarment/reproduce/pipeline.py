@@ -152,7 +152,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
 def _manual(ev: CachedEvaluator, budget: float) -> np.ndarray:
     """(m,) the manual baseline (:func:`~kgarment.reproduce.baselines.manual_design`) of ``ev``'s problem."""
     g = ev.garment
-    return manual_design(g.rest_vertices, g.faces, ev.setup.end_faces, *anchor_rings(g), budget)
+    return manual_design(g.rest_vertices, g.faces, ev.setup.end_faces, *anchor_rings(g, ev.body), budget)
 
 
 def _force_image(out: Path, name: str, paths: dict) -> str:
