@@ -188,12 +188,7 @@ def limb_bands(garment, body, held: np.ndarray, rings=()) -> list[np.ndarray]:
     if not body.rigged:
         return []
     names = list(body.bone_names)
-    # (m, B) share of each bone in the skinning of the body face under each garment face
-    tri = body.faces[garment.body_face]
-    weight = np.zeros((len(garment.faces), len(names)))
-    rows = np.repeat(np.arange(len(garment.faces)), tri.shape[1] * body.skin_indices.shape[1])
-    np.add.at(weight, (rows, body.skin_indices[tri].reshape(-1)), body.skin_weights[tri].reshape(-1))
-    weight /= np.maximum(weight.sum(axis=1, keepdims=True), 1e-12)
+    tri = body.faces[garment.body_face]  # (m, 3) the body face under each garment face
     anchored = np.asarray(held, bool).copy()
     for r in rings:
         anchored[np.asarray(r, dtype=int)] = True
@@ -202,7 +197,8 @@ def limb_bands(garment, body, held: np.ndarray, rings=()) -> list[np.ndarray]:
     for bones, end in LIMBS.values():
         if not all(b in names for b in (*bones, end)):
             continue
-        on = weight[:, [names.index(b) for b in bones]].sum(axis=1) > 0.5  # the segment's faces
+        ids = [names.index(b) for b in bones]  # the segment's faces: its bones' share of their skinning
+        on = (body.skin_weights[tri] * np.isin(body.skin_indices[tri], ids)).sum(axis=(1, 2)) > 0.5 * tri.shape[1]
         if not on.any() or anchored[on].any():
             continue
         p0, p1 = body.rest_joints[names.index(bones[0])], body.rest_joints[names.index(end)]
