@@ -170,9 +170,9 @@ def anchor_rings(garment, body=None) -> tuple[list[np.ndarray], np.ndarray]:
     return rings, held
 
 
-# Limb segments a designer bands: name -> (the bones covering it, the joint at its far end).
-# Anny's names; a rig without them gets no bands.
-LIMBS = {f"upper arm.{s}": ((f"upperarm01.{s}", f"upperarm02.{s}"), f"lowerarm01.{s}") for s in "LR"}
+# Limb segments a designer bands (the upper arms): (the bones covering it, the joint at its
+# far end). Anny's names; a rig without them gets no bands.
+LIMBS = tuple(((f"upperarm01.{s}", f"upperarm02.{s}"), f"lowerarm01.{s}") for s in "LR")
 BAND_WIDTH = 0.05  # m, along the limb
 BAND_GAP = np.pi / 3  # rad: a band leaving a wider gap round the limb does not close around it
 
@@ -194,7 +194,7 @@ def limb_bands(garment, body, held: np.ndarray, rings=()) -> list[np.ndarray]:
         anchored[np.asarray(r, dtype=int)] = True
     centre = garment.rest_vertices[garment.faces].mean(axis=1)
     bands = []
-    for bones, end in LIMBS.values():
+    for bones, end in LIMBS:
         if not all(b in names for b in (*bones, end)):
             continue
         ids = [names.index(b) for b in bones]  # the segment's faces: its bones' share of their skinning
@@ -202,9 +202,9 @@ def limb_bands(garment, body, held: np.ndarray, rings=()) -> list[np.ndarray]:
         if not on.any() or anchored[on].any():
             continue
         p0, p1 = body.rest_joints[names.index(bones[0])], body.rest_joints[names.index(end)]
-        axis = (p1 - p0) / np.linalg.norm(p1 - p0)
-        along = (centre - p0) @ axis
-        band = np.flatnonzero(on & (np.abs(along - 0.5 * np.linalg.norm(p1 - p0)) <= BAND_WIDTH / 2))
+        length = np.linalg.norm(p1 - p0)
+        axis = (p1 - p0) / length
+        band = np.flatnonzero(on & (np.abs((centre - p0) @ axis - length / 2) <= BAND_WIDTH / 2))
         if len(band) >= 3 and _closes_around(centre[band] - p0, axis):
             bands.append(band)
     return bands
