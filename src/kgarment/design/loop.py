@@ -118,7 +118,8 @@ class Solved:
     """Step 1's result: the equilibria of every state for the iteration's design.
 
     keys : StateKey per state;  states : SimState per state;  results : StateResult per
-    state;  options : the solver options used;  coarse : solved to the evolution tolerance;
+    state;  options : the solver options used;  coarse : the target area still shrinks (its
+    objective does not count towards convergence);
     unconverged : names of the states that did not converge;  energy : {StateKey: J stored
     in the reinforced faces (and clutches)};  stored : {StateKey: Stored};  alpha : {StateKey:
     (m,) element sensitivities};  newton_iterations : of every solve, both starts with
@@ -180,7 +181,7 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
         s = Stored.of(r, setup.objective != "passive")
         stored[key] = s
         energy[key] = float(s.face_energy[st.design > 0.5].sum() + s.clutch_energy)
-    return Solved([k for k, _ in keyed], states, results, opts, opts is not setup.solver,
+    return Solved([k for k, _ in keyed], states, results, opts, not setup.judged(st.iteration, st.target),
                   [r.name for r in results if not r.converged], energy, stored, alpha,
                   int(sum(r.convergence.iterations for r in both)) + path_newton, checked)
 

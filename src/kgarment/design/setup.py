@@ -35,9 +35,9 @@ class DesignSetup:
 
     model : SimModel (garment + clutches);  motions : {name: Motion};
     objective : "active" | "passive" | "compliance";  params : BesoParams;
-    solver : SolverOptions of iteration 0 and of every iteration at A* (and of evaluations);
-    evolution_solver : the options while the target area still shrinks towards A* (None:
-    ``solver``; see ``kgarment.problem.SolverSpec``);  protected : (m,) bool faces kept
+    solver : SolverOptions of iteration 0 (and of evaluations);
+    evolution_solver : the options of every later iteration (None: ``solver``; see
+    ``kgarment.problem.SolverSpec``);  protected : (m,) bool faces kept
     reinforced, or None;  areas : (m,) rest face areas, m^2;  filter_matrix : (m, m) CSR
     sensitivity filter;  adjacency : (m, m) CSR face adjacency;  ends : one ClutchEnds per
     clutch;  clutch_area : total rest area of the clutches, m^2 (0 for the passive objective);
@@ -256,11 +256,18 @@ class DesignSetup:
         return out
 
     def options(self, iteration: int, target: float) -> SolverOptions:
-        """The solver options of an iteration: ``evolution_solver`` from iteration 1 while the
-        target area differs from A*, ``solver`` otherwise."""
-        if self.evolution_solver is not None and iteration > 0 and target != self.params.target_area:
+        """The solver options of an iteration: ``solver`` for iteration 0 (the fully reinforced
+        garment, the reference of rho and of the objective), ``evolution_solver`` from
+        iteration 1 on, at the target area too (None: ``solver``); ``target`` is not used
+        (kept for callers; see ``kgarment.problem.SolverSpec``)."""
+        if self.evolution_solver is not None and iteration > 0:
             return self.evolution_solver
         return self.solver
+
+    def judged(self, iteration: int, target: float) -> bool:
+        """Whether an iteration's objective counts towards convergence: iteration 0 and every
+        iteration at the target area A*; every iteration without an ``evolution_solver``."""
+        return self.evolution_solver is None or iteration == 0 or target == self.params.target_area
 
 
 def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose: str = "design",

@@ -105,8 +105,8 @@ def holding_forces(hw: ClutchHardware, strips) -> np.ndarray | None:
 def solver_options(problem: Problem, purpose: str = "design", device: str = "cpu") -> SolverOptions:
     """The solver options of ``problem``'s ``[solver]`` for one purpose.
 
-    ``design``: ``tol`` (design iterations at A*, iteration 0);  ``evolution``:
-    ``max(tol, evolution_tol)`` (iterations whose target area still shrinks);  ``evaluate``:
+    ``design``: ``tol`` (iteration 0, the fully reinforced reference);  ``evolution``:
+    ``max(tol, evolution_tol)`` (every later design iteration);  ``evaluate``:
     ``min(tol, EVALUATION_TOL)`` (measuring a design: evaluate, simulate, the studio,
     reproduce, fabricate).  ``workers = 0`` becomes one process per core, at most
     :data:`kgarment.constants.MAX_WORKERS`.
