@@ -205,13 +205,13 @@ def test_skin_start_keeps_the_lowest_energy_of_the_evaluators_starts():
     setup = dataclasses.replace(setup, skin_start=True)
     states = [s for _, s in setup.states()]
     first = iterate(setup, initial_state(setup))
-    full_eq = setup.solve(np.ones(setup.model.n_faces), states, options=setup.options(0, 1.0))
+    full_eq = setup.solve(np.ones(setup.model.n_faces), states, options=setup.options(0))
     for s, r in zip(states, full_eq):  # iteration 0 is the fully reinforced garment from skin-tight
         assert np.array_equal(first.warm[s.name + FULL], r.x)
     st = iterate(setup, first)
     assert all(np.array_equal(st.warm[s.name + FULL], first.warm[s.name + FULL]) for s in states)  # kept
     solved = solve(setup, st)
-    opts = setup.options(st.iteration, st.target)
+    opts = setup.options(st.iteration)
     warm = setup.solve(st.design, states, warm_start=[st.warm.get(s.name) for s in states], options=opts)
     cold = setup.solve(st.design, states, options=opts)
     full = setup.solve(st.design, states, warm_start=[st.warm[s.name + FULL] for s in states], options=opts)
@@ -237,7 +237,7 @@ def test_a_start_that_stopped_below_the_kept_equilibrium_is_solved_on():
     setup = dataclasses.replace(setup, skin_start=True)
     st = iterate(setup, iterate(setup, initial_state(setup)))
     states = [s for _, s in setup.states()][:1]
-    opts = setup.options(st.iteration, st.target)
+    opts = setup.options(st.iteration)
     (eq,) = setup.solve(st.design, states, options=opts)
     (stopped,) = setup.solve(st.design, states, options=dataclasses.replace(opts, max_iter=2, rescue_shifts=0,
                                                                              on_fail="info"))

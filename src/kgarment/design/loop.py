@@ -149,7 +149,7 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     """Step 1: solve every state for ``st.design``, warm started."""
     keyed = setup.states()
     states = [s for _, s in keyed]
-    opts = setup.options(st.iteration, st.target)
+    opts = setup.options(st.iteration)
     warm = [st.warm.get(s.name) for s in states]
     if setup.skin_start and st.warm:
         n = len(states)

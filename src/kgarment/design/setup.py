@@ -255,11 +255,11 @@ class DesignSetup:
             out.append((f"{SOLO}{self.model.clutches[k].name}", g))
         return out
 
-    def options(self, iteration: int, target: float) -> SolverOptions:
+    def options(self, iteration: int) -> SolverOptions:
         """The solver options of an iteration: ``solver`` for iteration 0 (the fully reinforced
         garment, the reference of rho and of the objective), ``evolution_solver`` from
-        iteration 1 on, at the target area too (None: ``solver``); ``target`` is not used
-        (kept for callers; see ``kgarment.problem.SolverSpec``)."""
+        iteration 1 on, at the target area too (None: ``solver``; see
+        ``kgarment.problem.SolverSpec``)."""
         if self.evolution_solver is not None and iteration > 0:
             return self.evolution_solver
         return self.solver
