@@ -118,8 +118,7 @@ class Solved:
     """Step 1's result: the equilibria of every state for the iteration's design.
 
     keys : StateKey per state;  states : SimState per state;  results : StateResult per
-    state;  options : the solver options used;  coarse : the target area still shrinks (its
-    objective does not count towards convergence);
+    state;  options : the solver options used;
     unconverged : names of the states that did not converge;  energy : {StateKey: J stored
     in the reinforced faces (and clutches)};  stored : {StateKey: Stored};  alpha : {StateKey:
     (m,) element sensitivities};  newton_iterations : of every solve, both starts with
@@ -131,7 +130,6 @@ class Solved:
     states: list[SimState]
     results: list[StateResult]
     options: SolverOptions
-    coarse: bool
     unconverged: list[str]
     energy: dict[StateKey, float]
     stored: dict[StateKey, Stored]
@@ -181,7 +179,7 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
         s = Stored.of(r, setup.objective != "passive")
         stored[key] = s
         energy[key] = float(s.face_energy[st.design > 0.5].sum() + s.clutch_energy)
-    return Solved([k for k, _ in keyed], states, results, opts, not setup.judged(st.iteration, st.target),
+    return Solved([k for k, _ in keyed], states, results, opts,
                   [r.name for r in results if not r.converged], energy, stored, alpha,
                   int(sum(r.convergence.iterations for r in both)) + path_newton, checked)
 
@@ -303,7 +301,7 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
         accepted = motion_sensitivities(setup.objective, solved.alpha, list(setup.motions), setup.lockout,
                                         setup.balance, solved.energy, combine_weights(setup, row))
     row[REJECTED] = ",".join(rejected)
-    counts = not (solved.unconverged or solved.coarse or rejected)  # NaN: no convergence judged on it
+    counts = setup.judged(st.iteration, st.target) and not (solved.unconverged or rejected)  # else NaN: not judged
     objectives = st.objectives + (row["objective"] if counts else float("nan"),)
     done = converged(list(objectives), p.reached(row["area"]), p) or st.iteration + 1 >= p.max_iterations
     target, design, alpha = st.target, st.design, filt
