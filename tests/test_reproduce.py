@@ -194,9 +194,14 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
     exps = "arm_extension,sleeve_two_motions"
     # one experiment at a time, as a reproduction too long for one sitting is done: the
     # second invocation keeps the first's experiment and cross-evaluates the two
-    for name in reversed(exps.split(",")):
-        rc, out, err = _cli(["reproduce", "--resolution", "tiny", "--experiments", name, "--out", "rep"], tmp_path)
+    for k, name in enumerate(reversed(exps.split(","))):
+        args = ["reproduce", "--resolution", "tiny", "--experiments", name, "--out", "rep"]
+        rc, out, err = run_cli(args, tmp_path) if k == 0 else _cli(args, tmp_path)
         assert rc == 0, err
+        if k == 0:  # the long phases say where they are (not quiet): each random design, each frame
+            assert f"{name}: evaluating random design 1/2\n" in err
+            assert f"{name}: evaluating random design 2/2 (" in err and "s to go)" in err
+            assert "ours, the force over the motion: frame 2/2 (t = 1.00, " in err
     rep = tmp_path / "rep"
     doc = json.loads((rep / "data.json").read_text())
     assert list(doc["experiments"]) == exps.split(",")  # the canonical order

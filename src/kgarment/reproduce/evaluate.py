@@ -78,6 +78,7 @@ class CachedEvaluator:
         self.body = build_body(problem)
         self.garment = build_garment(problem, self.body)
         self.strips = build_clutches(problem, self.body, self.garment)
+        self.label = name  # in progress lines
         self.name = f"{name}#{problem_key(problem, self.strips)}"
         store = None if cache is None else EquilibriumStore(cache.path.parent / "runs" / FOLDER)
         self.evaluator = Evaluator.from_problem(problem, body=self.body, garment=self.garment, strips=self.strips,
@@ -119,7 +120,7 @@ class CachedEvaluator:
         if self.cache is not None and (hit := self.cache.get(key)) is not None \
                 and (phit := self.cache.get(pkey)) is not None:
             return hit, self._with_rest(design, pkey, phit)
-        path = self._path_report(design, frames)
+        path = self._path_report(design, frames, label)
         out = {"label": label, **self.evaluator.evaluate(design, loads=loads, known=path.ends).to_json()}
         frames_json = path.to_json()
         if self.cache is not None:
@@ -150,14 +151,17 @@ class CachedEvaluator:
     def _path_key(self, design: np.ndarray, frames: int) -> str:
         return f"{self.name}|{design_key(design)}|path{frames}|v2"  # v2: the end anchored at the target's equilibrium
 
-    def _path_report(self, design: np.ndarray, frames: int):
-        """:func:`kgarment.design.path.path_forces` of ``design`` (m,), kept for this object's
-        life (its ends serve the evaluation and the control table of the same design)."""
+    def _path_report(self, design: np.ndarray, frames: int, label: str = ""):
+        """:func:`kgarment.design.path.path_forces` of ``design`` (m,) (``label``: its name in
+        the progress lines), kept for this object's life (its ends serve the evaluation and
+        the control table of the same design)."""
         from kgarment.design.path import path_forces
 
         k = (design_key(design), frames)
-        if k not in self._paths:
-            self._paths[k] = path_forces(self.evaluator, design, self.problem, frames=frames)
+        if k not in self._paths:  # minutes at the default resolution: each frame logged, with its ETA
+            self._paths[k] = path_forces(self.evaluator, design, self.problem, frames=frames,
+                                         report=lambda line: log.info("%s, %s, the force over the motion: %s",
+                                                                      self.label, label or "design", line))
         return self._paths[k]
 
     def plan(self, design: np.ndarray, frames: int = 0) -> dict:
@@ -177,14 +181,15 @@ class CachedEvaluator:
             self.cache.put(key, out)
         return out
 
-    def path(self, design: np.ndarray, frames: int) -> dict:
+    def path(self, design: np.ndarray, frames: int, label: str = "") -> dict:
         """The force over the motion of ``design`` (m,) in ``frames`` frames, ON and OFF
-        (:func:`kgarment.design.path.path_forces`) as JSON, cached like the evaluations."""
+        (:func:`kgarment.design.path.path_forces`) as JSON, cached like the evaluations
+        (``label``: the design's name in the progress lines)."""
         design = np.asarray(design, dtype=np.float64)
         key = self._path_key(design, frames)
         if self.cache is not None and (hit := self.cache.get(key)) is not None:
             return self._with_rest(design, key, hit)
-        out = self._path_report(design, frames).to_json()
+        out = self._path_report(design, frames, label).to_json()
         if self.cache is not None:
             self.cache.put(key, out)
         return out

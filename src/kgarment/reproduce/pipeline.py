@@ -126,11 +126,10 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
                 entry["path"][kind] = paths[kind]
                 continue
             log.info("%s: the force over the motion of the %s design (%d frames)", exp.name, kind, res.path_frames)
-            entry["path"][kind] = ev.path(designs[kind], res.path_frames)
+            entry["path"][kind] = ev.path(designs[kind], res.path_frames, kind)
         entry["images"]["force"] = _force_image(out, exp.name, entry["path"])
     lap("paths")
-    entry["evaluations"]["random"] = [ev.evaluate(random_design(g.rest_vertices, g.faces, budget, seed), f"random {seed}")
-                                      for seed in range(res.seeds)]
+    entry["evaluations"]["random"] = _random_baselines(exp.name, ev, g, budget, res.seeds)
     lap("random")
     for kind in ("ours", "compliance", "manual"):
         entry["images"][kind] = "img/" + _render_design(img / f"{exp.name}_{kind}.png", ev, designs[kind],
@@ -378,3 +377,18 @@ def summary(doc: dict) -> dict:
                    if kind in e["evaluations"]} for name, e in doc["experiments"].items()}
     return {"resolution": doc["resolution"]["name"], "preset": doc.get("preset", "paper"), "experiments": exps,
             "targets": target_flags(doc), "sensor": sensor_rows(doc)}
+
+
+def _random_baselines(name: str, ev: CachedEvaluator, g, budget: float, seeds: int) -> list[dict]:
+    """The evaluations of the random designs of seeds 0 .. ``seeds`` - 1 (``g``: the
+    garment; ``budget``: their reinforced share of its area), one progress line before each
+    with the time so far and an estimate of what is left (at the default resolution the
+    random baselines were the longest part of the shirts' experiments, 43-76 minutes each in the
+    default report of simulation model 1)."""
+    out, t0 = [], time.perf_counter()
+    for seed in range(seeds):
+        spent = time.perf_counter() - t0
+        eta = f" ({spent:.0f} s so far, about {spent / seed * (seeds - seed):.0f} s to go)" if seed else ""
+        log.info("%s: evaluating random design %d/%d%s", name, seed + 1, seeds, eta)
+        out.append(ev.evaluate(random_design(g.rest_vertices, g.faces, budget, seed), f"random {seed}"))
+    return out
