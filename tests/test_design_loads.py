@@ -184,3 +184,28 @@ def test_a_design_already_solved_in_a_state_is_not_solved_again(tube, monkeypatc
     calls.clear()
     ev.equilibria(design, half)
     assert calls == [2]
+
+
+def test_a_load_state_that_needs_more_iterations_goes_on_from_where_it_stopped(tube, tube_loads, monkeypatch):
+    """A one-clutch state cut off by the solver's iteration limit one iteration short of
+    convergence goes on from where it stopped (a second round of as many), not from the
+    evaluator's two starts, and ends at the equilibrium an unlimited solve reaches."""
+    import dataclasses
+
+    from kgarment.constants import LOAD_TOL
+    from kgarment.design.loads import activation_equilibria, nearer_start
+
+    evaluator, design = tube
+    known = {(s.motion, s.state): s.result for s in tube_loads.states}
+    keyed = evaluator.activation_states([1.0, 0.0], ["pull"], "only linked")
+    setup = evaluator.setup
+    start = nearer_start(setup, design, keyed[0][1], [known[("pull", "on")].x, known[("pull", "off")].x])
+    free = dataclasses.replace(setup.solver, tol=LOAD_TOL, rescue_shifts=0)
+    (full,) = setup.solve_now(design, [keyed[0][1]], [start], free)
+    n = full.convergence.iterations
+    assert full.converged and n >= 3  # a state that takes a few iterations from its start
+    short = Evaluator(dataclasses.replace(setup, solver=dataclasses.replace(setup.solver, max_iter=n - 1)))
+    monkeypatch.setattr(Evaluator, "equilibria", lambda *a, **k: pytest.fail("fell back to the two starts"))
+    (r,) = activation_equilibria(short, design, keyed, known).values()
+    assert r.converged
+    assert r.total_energy == pytest.approx(full.total_energy, rel=1e-6)
