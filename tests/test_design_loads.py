@@ -209,3 +209,28 @@ def test_a_load_state_that_needs_more_iterations_goes_on_from_where_it_stopped(t
     (r,) = activation_equilibria(short, design, keyed, known).values()
     assert r.converged
     assert r.total_energy == pytest.approx(full.total_energy, rel=1e-6)
+
+
+def test_a_state_converged_from_neither_start_goes_on_from_the_nearer_end(tube):
+    """The evaluator's two starts both cut off one iteration short of convergence: the state
+    goes on from the end nearer convergence and reaches the equilibrium the unlimited solves
+    reach (the tube has one), instead of being reported unconverged."""
+    import dataclasses
+
+    from kgarment.design.evaluate import solve_two_starts
+
+    evaluator, design = tube
+    setup = evaluator.setup
+    keyed = [(k, s) for k, s in evaluator.keyed() if k[1] == "off"]
+    (ref,) = evaluator.reference(keyed)
+    free = dataclasses.replace(setup.solver, rescue_shifts=0)
+    (a,), (b,) = solve_two_starts(setup, design, [keyed[0][1]], [ref.x], options=free)
+    n = min(a.convergence.iterations, b.convergence.iterations)
+    assert a.converged and b.converged and n >= 3
+    assert a.total_energy == pytest.approx(b.total_energy, rel=1e-6)
+    short = Evaluator(dataclasses.replace(setup, solver=dataclasses.replace(free, max_iter=n - 1)))
+    (cut,), (cut2,) = solve_two_starts(short.setup, design, [keyed[0][1]], [ref.x])
+    assert not cut.converged and not cut2.converged  # what the evaluator had before going on
+    (e,) = short.solve_design(design, keyed, starts=[ref.x])
+    assert e.result.converged
+    assert e.result.total_energy == pytest.approx(a.total_energy, rel=1e-6)

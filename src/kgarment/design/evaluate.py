@@ -14,8 +14,12 @@ warm-started path begins).  A membrane without bending on a frictionless body ca
 several equilibria (the garment settles in different places), and the two starts can
 end in different ones: the converged solution of lower total energy, the more stable one,
 is kept, and the other is reported when the two differ by more than ``MULTISTABLE``.  A
-clutched state that converges from neither start is solved by
-:func:`activation_continuation`.  Equilibria found otherwise -- the end of the motion
+state that converges from neither start goes on from the end nearer convergence for as
+many iterations again (measured on the three-motion shirt's design at subdivision 1,
+2026-11-28: arms raise and bend forward OFF, unconverged after 200 iterations and the
+rescue's 200 from each start, converged in 47 and 71 more, 17 s: the garment was still
+sliding, and the rescue starts again from the start); a clutched state that has not
+converged then either is solved by :func:`activation_continuation`.  Equilibria found otherwise -- the end of the motion
 solved from rest (``kgarment evaluate --path``, :func:`kgarment.design.path.path_forces`),
 the one a wearer reaches -- compete with the two starts' (``known``): the lowest is kept
 and marked ``from_path``.  Measured on the two-motion sleeve at subdivision 1 (its final
@@ -304,6 +308,13 @@ class Evaluator:
         starts = [r.x for r in self.reference(keyed)] if starts is None else list(starts)
         from_starts, cold = solve_two_starts(setup, design, states, starts)
         out = [pick_equilibrium(a, b) for a, b in zip(cold, from_starts)]
+        slow = [i for i, e in enumerate(out) if not e.result.converged]
+        if slow:  # converged from neither start: on from the nearer end, once (a slow slide, measured)
+            log.info("%d state(s) go on from where they stopped: %s", len(slow), ", ".join(states[i].name for i in slow))
+            again = setup.solve(design, [states[i] for i in slow], warm_start=[out[i].result.x for i in slow])
+            for i, r in zip(slow, again):
+                if r.converged or r.convergence.residual < out[i].result.convergence.residual:
+                    out[i] = Equilibrium(r)
         todo = [i for i, e in enumerate(out) if not e.result.converged and states[i].clutched]
         if todo:  # the continuation's first step is the motion's OFF state from skin-tight: solved already
             off = {s.motion.name: r for s, r in zip(states, cold) if not s.clutched}
