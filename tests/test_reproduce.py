@@ -517,3 +517,11 @@ def test_the_comparison_names_what_carries_a_motion_that_falls_short():
     assert "b/flex (0.20x): no clutch carries it" in text
     assert "c/flex (0.30x): outer carries it (share 0.04, 90 N at the target)" in text
     assert short_words(doc, []) == ""
+
+
+def test_time_left_is_a_linear_estimate():
+    from kgarment.io import time_left
+
+    assert time_left(12.0, 0, 10) == ""  # nothing done: nothing to extrapolate from
+    assert time_left(12.0, 3, 10) == "12 s so far, about 28 s to go"  # 4 s a step, 7 steps left
+    assert time_left(40.0, 10, 10) == "40 s so far, about 0 s to go"

@@ -76,6 +76,14 @@ def json_text(obj, indent: int | None = 1) -> str:
     return json.dumps(finite_json(obj), indent=indent, allow_nan=False)
 
 
+def time_left(spent_s: float, done: int, total: int) -> str:
+    """'S s so far, about R s to go' after ``done`` of ``total`` equal steps took
+    ``spent_s`` seconds (a linear estimate); '' before the first is done."""
+    if done <= 0:
+        return ""
+    return f"{spent_s:.0f} s so far, about {spent_s / done * (total - done):.0f} s to go"
+
+
 def atomic_save_npz(path, *, compressed: bool = True, **arrays) -> Path:
     """Write an ``.npz`` of ``arrays`` atomically, compressed unless ``compressed=False``
     (a file rewritten often: deflate took 80 ms of a design run's 1.5 MB checkpoint, the

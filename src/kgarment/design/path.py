@@ -49,6 +49,7 @@ import numpy as np
 from kgarment.design.evaluate import MULTISTABLE
 from kgarment.design.frames import REST, frame_motions
 from kgarment.errors import KgarmentError
+from kgarment.io import time_left
 from kgarment.sim import SimState, clutch_tensions
 from kgarment.sim.slip import slides
 
@@ -319,7 +320,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
     for i in range(frames):
         if report is not None:
             spent = time.perf_counter() - started
-            eta = f", {spent:.0f} s so far, about {spent / i * (frames - i):.0f} s to go" if i else ""
+            eta = f", {time_left(spent, i, frames)}" if i else ""
             report(f"frame {i + 1}/{frames} (t = {(i + 1) / frames:.2f}{eta})")
         keys = [(m, s, i) for m in motions for s in STATES]
         states = [state(by_motion[m][i][0], m, s) for m, s, _ in keys]

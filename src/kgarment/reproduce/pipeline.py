@@ -29,7 +29,7 @@ from kgarment.constants import SIM_MODEL
 from kgarment.design import design_values
 from kgarment.design.run import other_model
 from kgarment.errors import KgarmentError
-from kgarment.io import atomic_write_text, json_text, make_folder
+from kgarment.io import atomic_write_text, json_text, make_folder, time_left
 from kgarment.render import faces_near, render_design
 from kgarment.reproduce.baselines import anchor_rings, manual_design, random_design
 from kgarment.reproduce.catalog import objectives_at_target
@@ -388,7 +388,7 @@ def _random_baselines(name: str, ev: CachedEvaluator, g, budget: float, seeds: i
     out, t0 = [], time.perf_counter()
     for seed in range(seeds):
         spent = time.perf_counter() - t0
-        eta = f" ({spent:.0f} s so far, about {spent / seed * (seeds - seed):.0f} s to go)" if seed else ""
+        eta = f" ({time_left(spent, seed, seeds)})" if seed else ""
         log.info("%s: evaluating random design %d/%d%s", name, seed + 1, seeds, eta)
         out.append(ev.evaluate(random_design(g.rest_vertices, g.faces, budget, seed), f"random {seed}"))
     return out
