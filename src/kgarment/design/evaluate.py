@@ -19,8 +19,8 @@ many iterations again (measured on the three-motion shirt's design at subdivisio
 2026-11-28: arms raise and bend forward OFF, unconverged after 200 iterations and the
 rescue's 200 from each start, converged in 47 and 71 more, 17 s: the garment was still
 sliding, and the rescue starts again from the start); a clutched state that has not
-converged then either is solved by :func:`activation_continuation`.  Equilibria found otherwise -- the end of the motion
-solved from rest (``kgarment evaluate --path``, :func:`kgarment.design.path.path_forces`),
+converged then either is solved by :func:`activation_continuation`.  Equilibria found
+otherwise -- the end of the motion solved from rest (``kgarment evaluate --path``, :func:`kgarment.design.path.path_forces`),
 the one a wearer reaches -- compete with the two starts' (``known``): the lowest is kept
 and marked ``from_path``.  Measured on the two-motion sleeve at subdivision 1 (its final
 design, 2026-11-26): in arm flexion ON the two starts ended at 24.9 J, the motion from rest

@@ -175,10 +175,10 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     "off")]``), whichever has the lower energy under the state's activation
     (:func:`nearer_start`), and is solved to :data:`LOAD_TOL`; a state that does not
     converge in the solver's iterations goes on from where it stopped for as many again, and
-    one that does not converge then goes through the evaluator's two starts.  That first solve has no rescue (a second
-    solve from the same start with larger shifts, ``SolverOptions.rescue_shifts``) and
-    does not warn about the states it leaves unconverged: the two starts follow anyway
-    (and warn where they fail too).  Measured on the main job's design (2026-11-27): its one
+    one that does not converge then goes through the evaluator's two starts.  These solves
+    have no rescue (a second solve from the same start with larger shifts,
+    ``SolverOptions.rescue_shifts``) and do not warn about the states they leave
+    unconverged: the two starts follow anyway (and warn where they fail too).  Measured on the main job's design (2026-11-27): its one
     unconverged load state (bend forward, the upper back clutch alone) wandered for 200
     iterations and its rescue for 200 more (15 s) before the two starts converged it.
     Measured on the three-motion shirt's design at subdivision 1 (2026-11-28, 136
