@@ -400,3 +400,20 @@ def test_the_lagged_contact_set_reaches_the_same_equilibrium(monkeypatch):
     assert any(used)
     assert abs(ends[0].total_energy - ends[1].total_energy) < 1e-7 * abs(ends[1].total_energy)
     assert np.abs(ends[0].x - ends[1].x).max() < 1e-5 * np.ptp(ends[1].x, axis=0).max()
+
+
+def test_a_solve_that_runs_out_of_iterations_is_rescued_from_where_it_stopped():
+    """The rescue of a solve cut off by ``max_iter`` (not stalled) goes on from where it
+    stopped: one iteration short of convergence, it converges to the equilibrium an unlimited
+    solve reaches, where a new start would stop short again."""
+    model, motion = tube_scene("reference")
+    state = SimState.create(motion, [1.0], name="tight")
+    d = np.full(model.n_faces, 0.001)
+    (full,) = solve_states(model, d, [state], options=SolverOptions(rescue_shifts=0))
+    n = full.convergence.iterations
+    assert full.converged and n >= 3
+    (cut,) = solve_states(model, d, [state], options=SolverOptions(max_iter=n - 1, rescue_shifts=0, on_fail="info"))
+    assert not cut.converged
+    (r,) = solve_states(model, d, [state], options=SolverOptions(max_iter=n - 1))
+    assert r.converged and n - 1 < r.convergence.iterations <= 2 * (n - 1)
+    assert r.total_energy == pytest.approx(full.total_energy, rel=1e-8)
