@@ -18,10 +18,11 @@ state that converges from neither start goes on from the end nearer convergence 
 many iterations again (measured on the three-motion shirt's design at subdivision 1,
 2026-11-28: arms raise and bend forward OFF, unconverged after 200 iterations and the
 rescue's 200 from each start, converged in 47 and 71 more, 17 s: the garment was still
-sliding, and the rescue starts again from the start); a clutched state that has not
-converged then either is solved by :func:`activation_continuation`.  Equilibria found
-otherwise -- the end of the motion solved from rest (``kgarment evaluate --path``, :func:`kgarment.design.path.path_forces`),
-the one a wearer reaches -- compete with the two starts' (``known``): the lowest is kept
+sliding, and the rescue then started again from the start; it now goes on from where a solve
+ran out of iterations, and converges them itself); a clutched state that has not converged
+then either is solved by :func:`activation_continuation`.  Equilibria found otherwise --
+the end of the motion solved from rest (``kgarment evaluate --path``,
+:func:`kgarment.design.path.path_forces`), the one a wearer reaches -- compete with the two starts' (``known``): the lowest is kept
 and marked ``from_path``.  Measured on the two-motion sleeve at subdivision 1 (its final
 design, 2026-11-26): in arm flexion ON the two starts ended at 24.9 J, the motion from rest
 at 6.8 J (rho ON 0.99 against 0.02, below its rho OFF 0.03).  Measured on a tiny sleeve design
@@ -310,8 +311,7 @@ class Evaluator:
         out = [pick_equilibrium(a, b) for a, b in zip(cold, from_starts)]
         slow = [i for i, e in enumerate(out) if not e.result.converged]
         if slow:  # converged from neither start: on from the nearer end, once (a slow slide, measured)
-            log.info("%d state(s) go on from where they stopped: %s", len(slow), ", ".join(states[i].name for i in slow))
-            again = setup.solve(design, [states[i] for i in slow], warm_start=[out[i].result.x for i in slow])
+            again = setup.go_on(design, [states[i] for i in slow], [out[i].result for i in slow])
             for i, r in zip(slow, again):
                 if r.converged or r.convergence.residual < out[i].result.convergence.residual:
                     out[i] = Equilibrium(r)

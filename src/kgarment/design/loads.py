@@ -176,9 +176,9 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     (:func:`nearer_start`), and is solved to :data:`LOAD_TOL`; a state that does not
     converge in the solver's iterations goes on from where it stopped for as many again, and
     one that does not converge then goes through the evaluator's two starts.  These solves
-    have no rescue (a second solve from the same start with larger shifts,
-    ``SolverOptions.rescue_shifts``) and do not warn about the states they leave
-    unconverged: the two starts follow anyway (and warn where they fail too).  Measured on the main job's design (2026-11-27): its one
+    have no rescue (a second solve with larger shifts, ``SolverOptions.rescue_shifts``) and
+    do not warn about the states they leave unconverged: the two starts follow anyway (and
+    warn where they fail too).  Measured on the main job's design (2026-11-27): its one
     unconverged load state (bend forward, the upper back clutch alone) wandered for 200
     iterations and its rescue for 200 more (15 s) before the two starts converged it.
     Measured on the three-motion shirt's design at subdivision 1 (2026-11-28, 136
@@ -195,8 +195,7 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     out = {key: r for (key, _), r in zip(keyed, solved) if r.converged}
     slow = [i for i, (key, _) in enumerate(keyed) if key not in out]
     if slow:  # one more round from where they stopped (slow sliding, not a wrong start)
-        log.info("%d state(s) go on from where they stopped: %s", len(slow), ", ".join(keyed[i][1].name for i in slow))
-        again = setup.solve(design, [keyed[i][1] for i in slow], warm_start=[solved[i].x for i in slow], options=opts)
+        again = setup.go_on(design, [keyed[i][1] for i in slow], [solved[i] for i in slow], opts)
         out.update({keyed[i][0]: r for i, r in zip(slow, again) if r.converged})
     retry = [(key, st) for key, st in keyed if key not in out]
     if retry:

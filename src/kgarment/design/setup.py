@@ -8,6 +8,7 @@ from parts); the loop, the evaluator and the final report only read it.
 from __future__ import annotations
 
 import dataclasses
+import logging
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,6 +24,8 @@ from kgarment.garment import Garment
 from kgarment.garment.topology import boundary_loops, face_adjacency, triangle_areas
 from kgarment.problem import BesoParams, Problem, build_model, solver_options
 from kgarment.sim import Motion, SimModel, SimState, SolverOptions, garment_motions, solve_states
+
+log = logging.getLogger(__name__)
 
 StateKey = tuple[str, str]  # (motion, "on" | "off" | "none" | "lock:OTHER MOTION" | "solo:CLUTCH")
 LOCK = "lock:"  # state label prefix: a motion under another motion's activation set
@@ -141,6 +144,14 @@ class DesignSetup:
         if shared is not None:
             return shared.solve(self, design, list(states), warm_start, options)
         return self.solve_now(design, states, warm_start, options)
+
+    def go_on(self, design: np.ndarray, states, stopped, options: SolverOptions | None = None) -> list:
+        """:meth:`solve` of ``states`` (SimState list) from where their unconverged solutions
+        ``stopped`` (StateResult list) ended, for as many iterations again: a garment still
+        sliding keeps its progress (measured, ``benchmarks/README.md``); logged."""
+        states = list(states)
+        log.info("%d state(s) go on from where they stopped: %s", len(states), ", ".join(s.name for s in states))
+        return self.solve(design, states, warm_start=[r.x for r in stopped], options=options)
 
     def solve_now(self, design: np.ndarray, states, warm_start, options: SolverOptions) -> list:
         """:meth:`solve` without the store."""

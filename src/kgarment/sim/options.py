@@ -45,7 +45,8 @@ class SolverOptions:
     max_shifts : shift increases (x10) tried before falling back to projection;
     rescue_shifts : for a state that did not converge (or stalled), one more solve allowing
     this many shift increases (0: none), from the same start where the solve stopped early
-    (stalled, stuck), from where it stopped where it ran out of ``max_iter`` (``serial._rescue``).  Measured: an arm-sleeve
+    (stalled, stuck), from where it stopped where it ran out of ``max_iter``
+    (``serial._rescue``).  Measured: an arm-sleeve
     state of a BESO run stalled at residual 1.5 with the projected fallback and converged
     in 89 iterations with 6; on the shirt, 6 from the start costs 20-50% more iterations,
     hence only as a rescue;
