@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 from kgarment.design.beso import (
     BesoParams,
     converged,
+    expected_iterations,
     interpolate,
     next_target,
     one_ring_filter,
@@ -61,6 +63,9 @@ def test_schedule_reaches_target_in_the_expected_iterations():
         v, k = next_target(v, p), k + 1
     assert k == math.ceil(math.log(0.15) / math.log(0.985))  # 126, as in the reference
     assert next_target(0.15, p) == 0.15
+    # the progress bars' estimate: the schedule and two convergence windows, at most the cap
+    assert expected_iterations(dataclasses.replace(p, window=5)) == 126 + 10
+    assert expected_iterations(dataclasses.replace(p, window=5, max_iterations=50)) == 50
 
 
 def test_update_meets_the_target_and_the_add_ratio():

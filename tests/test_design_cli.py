@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -40,6 +41,9 @@ def test_tiny_design_run(tmp_path, anny_body, objective):
     final = json.loads((run / "final" / "evaluation.json").read_text())
     assert final["iteration"] == 2 and {r["state"] for r in final["rows"]} == set(states)
     assert "evaluated like kgarment evaluate" in out
+    # stdout is not a terminal here (a log file, a pipe): the progress comes as lines, the last
+    # iteration's among them, with the time elapsed and an ETA
+    assert re.search(r"^it +3 of ~\d+  area +[\d.]+%  objective .* elapsed, ETA \d+:\d\d:\d\d$", out, re.MULTILINE), out
     # what to run next, where there are clutches to feel
     assert ("kgarment evaluate run --path 10; " in out and "kgarment plan run;" in out) == (objective != "passive")
     if objective == "passive":  # no clutches in the passive objective: no loads

@@ -198,7 +198,10 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
         args = ["reproduce", "--resolution", "tiny", "--experiments", name, "--out", "rep"]
         rc, out, err = run_cli(args, tmp_path) if k == 0 else _cli(args, tmp_path)
         assert rc == 0, err
-        if k == 0:  # the long phases say where they are (not quiet): each random design, each frame
+        if k == 0:  # the long phases say where they are (not quiet): each design's iterations as lines
+            # (stdout is not a terminal here), each random design, each frame
+            assert re.search(rf"^{name}: it +3 of ~\d+  area .* elapsed, ETA", out, re.MULTILINE), out
+            assert re.search(rf"^{name}-compliance: it +3 of ~\d+  ", out, re.MULTILINE), out
             assert f"{name}: evaluating random design 1/2\n" in err
             assert f"{name}: evaluating random design 2/2 (" in err and "s to go)" in err
             assert "ours, the force over the motion: frame 2/2 (t = 1.00, " in err

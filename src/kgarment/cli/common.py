@@ -192,11 +192,6 @@ def parse_activation(text: str, n_clutches: int) -> tuple[float, ...]:
     return vals
 
 
-def expected_iterations(beso) -> int:
-    """About how many iterations a BESO run takes (for the progress bar's ETA)."""
-    return math.ceil(math.log(beso.target_area) / math.log(1 - beso.er)) + 2 * beso.window
-
-
 def rho_line(row: dict, motions) -> str:
     """One line for a metrics row: area, objective, rho ON/OFF per motion."""
     rho = "  ".join(f"{m} {row.get(f'rho[{m}:on]', row.get(f'rho[{m}:none]', float('nan'))):.2f}"
@@ -206,7 +201,8 @@ def rho_line(row: dict, motions) -> str:
 
 @contextmanager
 def design_progress(total: int, start: int, motions, quiet: bool):
-    """A progress bar over design iterations; yields ``update(state)`` for the driver."""
+    """A progress bar over design iterations (lines where standard output is not a terminal:
+    :mod:`kgarment.cli.progress`); yields ``update(state)`` for the driver."""
     import logging
 
     from rich.progress import (
@@ -217,9 +213,13 @@ def design_progress(total: int, start: int, motions, quiet: bool):
         TimeRemainingColumn,
     )
 
+    from kgarment.cli.progress import LineProgress, on_terminal
+
     log = logging.getLogger("kgarment")
-    with Progress(TextColumn("[bold]it {task.completed:>3}"), BarColumn(), TextColumn("{task.description}"),
-                  TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), disable=quiet) as bar:
+    bars = Progress(TextColumn("[bold]it {task.completed:>3}"), BarColumn(), TextColumn("{task.description}"),
+                    TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), disable=quiet) \
+        if quiet or on_terminal() else LineProgress(lambda t: f"it {t['completed']:>3} of ~{t['total']}")
+    with bars as bar:
         task = bar.add_task("starting", total=total, completed=start)
 
         def update(st) -> None:

@@ -16,7 +16,6 @@ from kgarment.cli.common import (
     add_problem,
     add_skin_friction,
     design_progress,
-    expected_iterations,
     load,
     parse_phenotype,
     print_evaluation,
@@ -33,6 +32,7 @@ DESIGN_OUT = "runs/design"  # kgarment design --out's default
 def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: bool, evaluate: bool = True) -> int:
     """Open (or resume) a run folder, iterate with a progress bar, print the summary."""
     from kgarment.design import finish, open_run
+    from kgarment.design.beso import expected_iterations
 
     dr = open_run(None if resume else problem, out, resume=resume, force=force, device=device)
     if not quiet:
@@ -146,6 +146,8 @@ def cmd_sizes(args) -> int:
                             f"[{{name = ...}}, ...], e.g. the example {SIZES_EXAMPLE})")
     motions = list(problem.motions)  # run_sizes checks --out before any work
     print(f"wearers: {', '.join(problem.body.names)}; motions: {', '.join(motions)}; runs in {args.out}/runs")
+    from kgarment.design.beso import expected_iterations
+
     total = expected_iterations(problem.design.beso)
     bars = contextlib.ExitStack()
 

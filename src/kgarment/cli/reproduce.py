@@ -10,8 +10,15 @@ from kgarment.errors import KgarmentError
 
 
 def cmd_reproduce(args) -> int:
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import (
+        BarColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
+    from kgarment.cli.progress import LineProgress, on_terminal
     from kgarment.io import check_kind, read_json_object
     from kgarment.reproduce.catalog import DATA, RESOLUTIONS, select
     from kgarment.reproduce.pipeline import reproduce, rewrite_summary
@@ -37,14 +44,18 @@ def cmd_reproduce(args) -> int:
           + f" into {out} "
           f"(finished runs and evaluations there are reused): {', '.join(e.name for e in exps)}")
     t0 = time.time()
-    with Progress(TextColumn("[bold]{task.fields[run]:34s}"), TextColumn("it {task.completed:>3}"), BarColumn(),
-                  TextColumn("{task.description}"), TimeElapsedColumn(), disable=args.quiet) as bar:
+    bars = Progress(TextColumn("[bold]{task.fields[run]:34s}"), TextColumn("it {task.completed:>3}"), BarColumn(),
+                    TextColumn("{task.description}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+                    disable=args.quiet) if args.quiet or on_terminal() else \
+        LineProgress(lambda t: f"{t['run']}: it {t['completed']:>3} of ~{t['total']}")
+    with bars as bar:
         tasks: dict = {}
 
-        def progress(run: str, row: dict) -> None:
+        def progress(run: str, row: dict, expected: int) -> None:
             if run not in tasks:
-                tasks[run] = bar.add_task("", total=None, run=run)
-            bar.update(tasks[run], completed=row["iteration"] + 1,
+                # this iteration counts as done before the clock starts: the rate comes from those after it
+                tasks[run] = bar.add_task("", total=expected, completed=row["iteration"] + 1, run=run)
+            bar.update(tasks[run], completed=row["iteration"] + 1, total=max(expected, row["iteration"] + 2),
                        description=f"area {100 * row['area']:5.1f}%  objective {row['objective']:8.4f}  "
                                    f"{row['seconds']:5.1f} s/it")
 

@@ -7,7 +7,7 @@ import os
 from contextlib import contextmanager
 from pathlib import Path
 
-from kgarment.cli.common import expected_iterations, integer
+from kgarment.cli.common import integer
 from kgarment.errors import KgarmentError
 
 
@@ -37,6 +37,7 @@ def cmd_sweep(args) -> int:
         f"a local Ray cluster of {args.workers or os.cpu_count()} CPUs"
     print(f"sweep {sweep.path}: {len(sweep.tasks)} tasks, {len(sweep.tasks) - len(todo)} finished already"
           + (f", {len(todo)} to run on {where}" if todo else "") + f"; folder {out}")
+    from kgarment.design.beso import expected_iterations
     from kgarment.sweep.execute import run_sweep
 
     expected = {t.name: expected_iterations(t.problem.design.beso) for t in sweep.tasks}
@@ -70,7 +71,8 @@ def print_outcome(res) -> None:
 
 @contextmanager
 def sweep_progress(total: int, expected: dict, quiet: bool):
-    """A progress bar over tasks (the running ones count by their iterations); yields
+    """A progress bar over tasks (the running ones count by their iterations; lines where standard
+    output is not a terminal: :mod:`kgarment.cli.progress`); yields
     ``update(SweepProgress)`` for :func:`kgarment.sweep.execute.run_sweep`."""
     from rich.progress import (
         BarColumn,
@@ -80,17 +82,21 @@ def sweep_progress(total: int, expected: dict, quiet: bool):
         TimeRemainingColumn,
     )
 
-    with Progress(TextColumn("[bold]{task.fields[done]}/{task.total:.0f} tasks"), BarColumn(),
-                  TextColumn("{task.description}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                  disable=quiet) as bar:
+    from kgarment.cli.progress import LineProgress, on_terminal
+
+    bars = Progress(TextColumn("[bold]{task.fields[done]}/{task.total:.0f} tasks"), BarColumn(),
+                    TextColumn("{task.description}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+                    disable=quiet) if quiet or on_terminal() else \
+        LineProgress(lambda t: f"{t['done']}/{t['total']:.0f} tasks")
+    with bars as bar:
         task = bar.add_task("starting", total=total, done=0)
 
         def update(state) -> None:
             partial = sum(min(0.95, it / max(1, expected.get(n, 1))) for n, it in state.running.items())
             running = ", ".join(f"{n} it {it}" for n, it in list(state.running.items())[:3])
             more = len(state.running) - 3
-            desc = (f"{state.failed} failed, " if state.failed else "") + \
-                (f"running {running}" + (f" (+{more})" if more > 0 else "") if state.running else "")
+            desc = ", ".join(([f"{state.failed} failed"] if state.failed else []) +
+                             ([f"running {running}" + (f" (+{more})" if more > 0 else "")] if state.running else []))
             bar.update(task, completed=state.finished + state.failed + partial, description=desc,
                        done=state.finished + state.failed)
 

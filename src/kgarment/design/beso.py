@@ -7,6 +7,8 @@ Design variable x_e in {x_min, 1} per garment triangle (soft-kill, method.md sec
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -19,6 +21,7 @@ __all__ = [
     "BesoParams",
     "converged",
     "design_values",
+    "expected_iterations",
     "interpolate",
     "next_target",
     "one_ring_filter",
@@ -85,6 +88,14 @@ def next_target(current: float, params: BesoParams) -> float:
     if current > params.target_area:
         return max(params.target_area, current * (1.0 - params.er))
     return min(params.target_area, current * (1.0 + params.er))
+
+
+def expected_iterations(params: BesoParams) -> int:
+    """About how many iterations a run takes (for progress bars' ETA): the schedule down to the
+    target area (:func:`next_target`) and two convergence windows there, at most
+    ``max_iterations``."""
+    return min(params.max_iterations,
+               math.ceil(math.log(params.target_area) / math.log(1 - params.er)) + 2 * params.window)
 
 
 def settled_ar(params: BesoParams, at_target: int) -> float:

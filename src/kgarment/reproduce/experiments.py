@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from kgarment.design import design_values, finish, load_design_history, open_run, run_status
+from kgarment.design.beso import expected_iterations
 from kgarment.design.run import best_iteration
 from kgarment.errors import KgarmentError
 from kgarment.problem import Problem, example_path, load_problem, override
@@ -101,8 +102,9 @@ class RunOutcome:
 
 
 def design_run(problem: Problem, folder: Path, device: str = "cpu",
-               progress: Callable[[str, dict], None] | None = None) -> RunOutcome:
-    """Run (or resume, or reuse) the design of ``problem`` in ``folder``."""
+               progress: Callable[[str, dict, int], None] | None = None) -> RunOutcome:
+    """Run (or resume, or reuse) the design of ``problem`` in ``folder``; ``progress(run folder's
+    name, metrics row, expected iterations)`` after every iteration."""
     status = run_status(folder)
     if status != "new":
         _check_same_problem(problem, folder)
@@ -112,7 +114,8 @@ def design_run(problem: Problem, folder: Path, device: str = "cpu",
             dr = open_run(None, folder, resume=True, device=device)
         else:  # nothing computed yet: a partial folder without a checkpoint holds nothing to lose
             dr = open_run(problem, folder, force=True, device=device)
-        finish(dr, progress=(lambda st: progress(folder.name, st.metrics[-1])) if progress else None,
+        expected = expected_iterations(problem.design.beso)
+        finish(dr, progress=(lambda st: progress(folder.name, st.metrics[-1], expected)) if progress else None,
                evaluate=False)  # the reproduction evaluates every design itself
     rows = json.loads((folder / "metrics.json").read_text())
     hist = load_design_history(folder)

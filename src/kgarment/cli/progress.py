@@ -1,0 +1,109 @@
+"""Progress of long commands: a rich progress bar on a terminal, plain lines elsewhere.
+
+rich draws its bars only on a terminal; with standard output a file or a pipe (``nohup``,
+CI, a batch queue, ``| tee``) it printed nothing until the end, so a design or reproduction
+of hours left an empty log.  :class:`LineProgress` takes the bar's place there: the same
+calls (``add_task``, ``update``), one line per task at its first update, then at most one
+every :data:`EVERY_S` seconds, and the last state of every task at the end, each line with
+the time elapsed and an ETA from the mean time per step so far.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Self
+
+EVERY_S = 30.0  # seconds between two lines of one task
+
+
+def on_terminal() -> bool:
+    """Whether standard output is a terminal (where rich draws its bars)."""
+    isatty = getattr(sys.stdout, "isatty", None)
+    return bool(isatty and isatty())
+
+
+def clock_text(seconds: float | None) -> str:
+    """``seconds`` as H:MM:SS (``-:--:--`` when unknown)."""
+    if seconds is None or not math.isfinite(seconds) or seconds < 0:
+        return "-:--:--"
+    s = round(seconds)
+    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}"
+
+
+@dataclass
+class _Task:
+    fields: dict
+    total: float | None
+    completed: float
+    description: str
+    started: float
+    first: float  # ``completed`` at the start (a resumed run's iterations do not count for the rate)
+    printed_at: float | None = None
+    dirty: bool = True
+
+
+class LineProgress:
+    """Progress as lines of text, with the calls of ``rich.progress.Progress`` that kgarment uses.
+
+    label : the start of each line from the task's fields and its ``completed`` and ``total``
+    (a dict), e.g. ``lambda t: f"it {t['completed']:>3}"``;  every : seconds between two lines of
+    one task;  clock : seconds (monotonic; a test's fake clock);  write : where a line goes
+    (default: print to standard output, flushed).
+    """
+
+    def __init__(self, label: Callable[[dict], str], every: float = EVERY_S,
+                 clock: Callable[[], float] = time.monotonic, write: Callable[[str], None] | None = None):
+        self.label = label
+        self.every = every
+        self.clock = clock
+        self.write = write or (lambda line: print(line, flush=True))
+        self.tasks: list[_Task] = []
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for t in self.tasks:  # the last state of every task, once
+            if t.dirty and t.printed_at is not None:
+                self._line(t)
+
+    def add_task(self, description: str = "", total: float | None = None, completed: float = 0,
+                 **fields) -> int:
+        now = self.clock()
+        self.tasks.append(_Task(fields, total, completed, description, now, completed))
+        return len(self.tasks) - 1
+
+    def update(self, task: int, *, completed: float | None = None, total: float | None = None,
+               description: str | None = None, **fields) -> None:
+        t = self.tasks[task]
+        if completed is not None:
+            t.completed = completed
+        if total is not None:
+            t.total = total
+        if description is not None:
+            t.description = description
+        t.fields.update(fields)
+        t.dirty = True
+        now = self.clock()
+        if t.printed_at is None or now - t.printed_at >= self.every:
+            self._line(t)
+
+    def eta(self, task: int) -> float | None:
+        """Seconds left for ``task`` at its mean time per step so far (None: unknown)."""
+        t = self.tasks[task]
+        done = t.completed - t.first
+        if t.total is None or done <= 0:
+            return None
+        return max(t.total - t.completed, 0.0) * (self.clock() - t.started) / done
+
+    def _line(self, t: _Task) -> None:
+        now = self.clock()
+        head = self.label({**t.fields, "completed": t.completed, "total": t.total})
+        eta = self.eta(self.tasks.index(t))
+        tail = f"{clock_text(now - t.started)} elapsed" + ("" if t.total is None else f", ETA {clock_text(eta)}")
+        self.write("  ".join(s for s in (head, t.description, tail) if s))
+        t.printed_at, t.dirty = now, False
