@@ -27,6 +27,7 @@ def test_lines_are_throttled_and_the_last_state_is_printed_once():
         for now, done in ((12, 1), (20, 2), (45, 3), (50, 4)):
             clock.now = now
             bar.update(task, completed=done, description=f"step {done}")
+        clock.now = 90.0  # the work after the last step (a final evaluation) is not a step's
     # the first update; 33 s later the next; the last state at the end.  ETA: the steps left
     # at the mean time per step so far (9 x 12 s, 7 x 45/3 s, 6 x 50/4 s)
     assert lines == ["it 1 of ~10  step 1  0:00:12 elapsed, ETA 0:01:48",

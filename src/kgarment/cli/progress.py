@@ -42,6 +42,7 @@ class _Task:
     description: str
     started: float
     first: float  # ``completed`` at the start (a resumed run's iterations do not count for the rate)
+    updated_at: float = 0.0  # the time of the last update (what the line at the end reports)
     printed_at: float | None = None
     dirty: bool = True
 
@@ -88,22 +89,22 @@ class LineProgress:
             t.description = description
         t.fields.update(fields)
         t.dirty = True
-        now = self.clock()
+        now = t.updated_at = self.clock()
         if t.printed_at is None or now - t.printed_at >= self.every:
             self._line(t)
 
     def eta(self, task: int) -> float | None:
-        """Seconds left for ``task`` at its mean time per step so far (None: unknown)."""
+        """Seconds left for ``task`` at its last update, at its mean time per step (None: unknown)."""
         t = self.tasks[task]
         done = t.completed - t.first
         if t.total is None or done <= 0:
             return None
-        return max(t.total - t.completed, 0.0) * (self.clock() - t.started) / done
+        return max(t.total - t.completed, 0.0) * (t.updated_at - t.started) / done
 
     def _line(self, t: _Task) -> None:
-        now = self.clock()
+        now = t.updated_at
         head = self.label({**t.fields, "completed": t.completed, "total": t.total})
         eta = self.eta(self.tasks.index(t))
         tail = f"{clock_text(now - t.started)} elapsed" + ("" if t.total is None else f", ETA {clock_text(eta)}")
         self.write("  ".join(s for s in (head, t.description, tail) if s))
-        t.printed_at, t.dirty = now, False
+        t.printed_at, t.dirty = self.clock(), False
