@@ -205,21 +205,14 @@ def design_progress(total: int, start: int, motions, quiet: bool):
     :mod:`kgarment.cli.progress`); yields ``update(state)`` for the driver."""
     import logging
 
-    from rich.progress import (
-        BarColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+    from rich.progress import BarColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from kgarment.cli.progress import LineProgress, on_terminal
+    from kgarment.cli.progress import progress_bars
 
     log = logging.getLogger("kgarment")
-    bars = Progress(TextColumn("[bold]it {task.completed:>3}"), BarColumn(), TextColumn("{task.description}"),
-                    TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), disable=quiet) \
-        if quiet or on_terminal() else LineProgress(lambda t: f"it {t['completed']:>3} of ~{t['total']}")
-    with bars as bar:
+    with progress_bars((TextColumn("[bold]it {task.completed:>3}"), BarColumn(), TextColumn("{task.description}"),
+                        TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()),
+                       lambda t: f"it {t['completed']:>3} of ~{t['total']}", quiet) as bar:
         task = bar.add_task("starting", total=total, completed=start)
 
         def update(st) -> None:

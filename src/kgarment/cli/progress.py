@@ -26,6 +26,16 @@ def on_terminal() -> bool:
     return bool(isatty and isatty())
 
 
+def progress_bars(columns, label: Callable[[dict], str], quiet: bool):
+    """rich's ``Progress(*columns)`` on a terminal (disabled when ``quiet``), else a
+    :class:`LineProgress` with ``label``: the bars of every long command."""
+    if quiet or on_terminal():
+        from rich.progress import Progress
+
+        return Progress(*columns, disable=quiet)
+    return LineProgress(label)
+
+
 def clock_text(seconds: float | None) -> str:
     """``seconds`` as H:MM:SS (``-:--:--`` when unknown)."""
     if seconds is None or not math.isfinite(seconds) or seconds < 0:
@@ -95,7 +105,10 @@ class LineProgress:
 
     def eta(self, task: int) -> float | None:
         """Seconds left for ``task`` at its last update, at its mean time per step (None: unknown)."""
-        t = self.tasks[task]
+        return self._eta(self.tasks[task])
+
+    @staticmethod
+    def _eta(t: _Task) -> float | None:
         done = t.completed - t.first
         if t.total is None or done <= 0:
             return None
@@ -104,7 +117,7 @@ class LineProgress:
     def _line(self, t: _Task) -> None:
         now = t.updated_at
         head = self.label({**t.fields, "completed": t.completed, "total": t.total})
-        eta = self.eta(self.tasks.index(t))
+        eta = self._eta(t)
         tail = f"{clock_text(now - t.started)} elapsed" + ("" if t.total is None else f", ETA {clock_text(eta)}")
         self.write("  ".join(s for s in (head, t.description, tail) if s))
         t.printed_at, t.dirty = self.clock(), False

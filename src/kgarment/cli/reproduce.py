@@ -12,13 +12,12 @@ from kgarment.errors import KgarmentError
 def cmd_reproduce(args) -> int:
     from rich.progress import (
         BarColumn,
-        Progress,
         TextColumn,
         TimeElapsedColumn,
         TimeRemainingColumn,
     )
 
-    from kgarment.cli.progress import LineProgress, on_terminal
+    from kgarment.cli.progress import progress_bars
     from kgarment.io import check_kind, read_json_object
     from kgarment.reproduce.catalog import DATA, RESOLUTIONS, select
     from kgarment.reproduce.pipeline import reproduce, rewrite_summary
@@ -44,11 +43,9 @@ def cmd_reproduce(args) -> int:
           + f" into {out} "
           f"(finished runs and evaluations there are reused): {', '.join(e.name for e in exps)}")
     t0 = time.time()
-    bars = Progress(TextColumn("[bold]{task.fields[run]:34s}"), TextColumn("it {task.completed:>3}"), BarColumn(),
-                    TextColumn("{task.description}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                    disable=args.quiet) if args.quiet or on_terminal() else \
-        LineProgress(lambda t: f"{t['run']}: it {t['completed']:>3} of ~{t['total']}")
-    with bars as bar:
+    with progress_bars((TextColumn("[bold]{task.fields[run]:34s}"), TextColumn("it {task.completed:>3}"), BarColumn(),
+                        TextColumn("{task.description}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()),
+                       lambda t: f"{t['run']}: it {t['completed']:>3} of ~{t['total']}", args.quiet) as bar:
         tasks: dict = {}
 
         def progress(run: str, row: dict, expected: int) -> None:

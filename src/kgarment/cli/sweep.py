@@ -76,19 +76,17 @@ def sweep_progress(total: int, expected: dict, quiet: bool):
     ``update(SweepProgress)`` for :func:`kgarment.sweep.execute.run_sweep`."""
     from rich.progress import (
         BarColumn,
-        Progress,
         TextColumn,
         TimeElapsedColumn,
         TimeRemainingColumn,
     )
 
-    from kgarment.cli.progress import LineProgress, on_terminal
+    from kgarment.cli.progress import progress_bars
 
-    bars = Progress(TextColumn("[bold]{task.fields[done]}/{task.total:.0f} tasks"), BarColumn(),
-                    TextColumn("{task.description}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                    disable=quiet) if quiet or on_terminal() else \
-        LineProgress(lambda t: f"{t['done']}/{t['total']:.0f} tasks")
-    with bars as bar:
+    with progress_bars((TextColumn("[bold]{task.fields[done]}/{task.total:.0f} tasks"), BarColumn(),
+                        TextColumn("{task.description}"), TimeElapsedColumn(), TextColumn("ETA"),
+                        TimeRemainingColumn()),
+                       lambda t: f"{t['done']}/{t['total']:.0f} tasks", quiet) as bar:
         task = bar.add_task("starting", total=total, done=0)
 
         def update(state) -> None:
