@@ -76,12 +76,19 @@ def json_text(obj, indent: int | None = 1) -> str:
     return json.dumps(finite_json(obj), indent=indent, allow_nan=False)
 
 
+def seconds_left(spent_s: float, done: float, total: float) -> float | None:
+    """Seconds the ``total - done`` remaining steps take at the mean time per step of the
+    ``done`` that took ``spent_s`` seconds (a linear estimate); None before the first."""
+    if done <= 0:
+        return None
+    return max(total - done, 0.0) * spent_s / done
+
+
 def time_left(spent_s: float, done: int, total: int) -> str:
     """'S s so far, about R s to go' after ``done`` of ``total`` equal steps took
-    ``spent_s`` seconds (a linear estimate); '' before the first is done."""
-    if done <= 0:
-        return ""
-    return f"{spent_s:.0f} s so far, about {spent_s / done * (total - done):.0f} s to go"
+    ``spent_s`` seconds (:func:`seconds_left`); '' before the first is done."""
+    left = seconds_left(spent_s, done, total)
+    return "" if left is None else f"{spent_s:.0f} s so far, about {left:.0f} s to go"
 
 
 def atomic_save_npz(path, *, compressed: bool = True, **arrays) -> Path:

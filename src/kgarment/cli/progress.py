@@ -17,6 +17,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Self
 
+from kgarment.io import seconds_left
+
 EVERY_S = 30.0  # seconds between two lines of one task
 
 
@@ -109,10 +111,9 @@ class LineProgress:
 
     @staticmethod
     def _eta(t: _Task) -> float | None:
-        done = t.completed - t.first
-        if t.total is None or done <= 0:
+        if t.total is None:
             return None
-        return max(t.total - t.completed, 0.0) * (t.updated_at - t.started) / done
+        return seconds_left(t.updated_at - t.started, t.completed - t.first, t.total - t.first)
 
     def _line(self, t: _Task) -> None:
         now = t.updated_at
