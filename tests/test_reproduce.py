@@ -421,6 +421,9 @@ def test_the_selective_target_from_the_clutch_set_tables():
     sel["plan"]["sets"][1]["resistance_J"] = 2.5  # extension's clutch now stores 62% of flexion's own: a lock
     (t,) = selective_targets({"sleeve_two_motions": base, "sleeve_selective": sel})
     assert not t.ok and "other sets 62% of its own" in t.detail
+    sel["clutch_model"] = "locked"  # a band locks where a cable is slack: the line says which was simulated
+    (t,) = selective_targets({"sleeve_two_motions": base, "sleeve_selective": sel})
+    assert t.detail.startswith("sleeve_selective (locked clutches): ")
     assert selective_targets({"sleeve_two_motions": base}) == []  # no activation sets, no target
 
 
