@@ -205,13 +205,12 @@ def design_progress(total: int, start: int, motions, quiet: bool):
     :mod:`kgarment.cli.progress`); yields ``update(state)`` for the driver."""
     import logging
 
-    from rich.progress import BarColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+    from rich.progress import TextColumn
 
     from kgarment.cli.progress import progress_bars
 
     log = logging.getLogger("kgarment")
-    with progress_bars((TextColumn("[bold]it {task.completed:>3}"), BarColumn(), TextColumn("{task.description}"),
-                        TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()),
+    with progress_bars((TextColumn("[bold]it {task.completed:>3}"),),
                        lambda t: f"it {t['completed']:>3} of ~{t['total']}", quiet) as bar:
         task = bar.add_task("starting", total=total, completed=start)
 

@@ -28,13 +28,21 @@ def on_terminal() -> bool:
     return bool(isatty and isatty())
 
 
-def progress_bars(columns, label: Callable[[dict], str], quiet: bool):
-    """rich's ``Progress(*columns)`` on a terminal (disabled when ``quiet``), else a
-    :class:`LineProgress` with ``label``: the bars of every long command."""
+def progress_bars(head, label: Callable[[dict], str], quiet: bool):
+    """rich's bars on a terminal (disabled when ``quiet``): the ``head`` columns, then the bar,
+    the task's description, the time elapsed and the ETA; else a :class:`LineProgress` with
+    ``label``: the bars of every long command."""
     if quiet or on_terminal():
-        from rich.progress import Progress
+        from rich.progress import (
+            BarColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
 
-        return Progress(*columns, disable=quiet)
+        return Progress(*head, BarColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), TextColumn("ETA"),
+                        TimeRemainingColumn(), disable=quiet)
     return LineProgress(label)
 
 
@@ -105,12 +113,9 @@ class LineProgress:
         if t.printed_at is None or now - t.printed_at >= self.every:
             self._line(t)
 
-    def eta(self, task: int) -> float | None:
-        """Seconds left for ``task`` at its last update, at its mean time per step (None: unknown)."""
-        return self._eta(self.tasks[task])
-
     @staticmethod
     def _eta(t: _Task) -> float | None:
+        """Seconds left for task ``t`` at its last update, at its mean time per step (None: unknown)."""
         if t.total is None:
             return None
         return seconds_left(t.updated_at - t.started, t.completed - t.first, t.total - t.first)

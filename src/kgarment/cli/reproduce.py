@@ -10,12 +10,7 @@ from kgarment.errors import KgarmentError
 
 
 def cmd_reproduce(args) -> int:
-    from rich.progress import (
-        BarColumn,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+    from rich.progress import TextColumn
 
     from kgarment.cli.progress import progress_bars
     from kgarment.io import check_kind, read_json_object
@@ -43,8 +38,7 @@ def cmd_reproduce(args) -> int:
           + f" into {out} "
           f"(finished runs and evaluations there are reused): {', '.join(e.name for e in exps)}")
     t0 = time.time()
-    with progress_bars((TextColumn("[bold]{task.fields[run]:34s}"), TextColumn("it {task.completed:>3}"), BarColumn(),
-                        TextColumn("{task.description}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()),
+    with progress_bars((TextColumn("[bold]{task.fields[run]:34s}"), TextColumn("it {task.completed:>3}")),
                        lambda t: f"{t['run']}: it {t['completed']:>3} of ~{t['total']}", args.quiet) as bar:
         tasks: dict = {}
 

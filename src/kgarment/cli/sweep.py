@@ -74,18 +74,11 @@ def sweep_progress(total: int, expected: dict, quiet: bool):
     """A progress bar over tasks (the running ones count by their iterations; lines where standard
     output is not a terminal: :mod:`kgarment.cli.progress`); yields
     ``update(SweepProgress)`` for :func:`kgarment.sweep.execute.run_sweep`."""
-    from rich.progress import (
-        BarColumn,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+    from rich.progress import TextColumn
 
     from kgarment.cli.progress import progress_bars
 
-    with progress_bars((TextColumn("[bold]{task.fields[done]}/{task.total:.0f} tasks"), BarColumn(),
-                        TextColumn("{task.description}"), TimeElapsedColumn(), TextColumn("ETA"),
-                        TimeRemainingColumn()),
+    with progress_bars((TextColumn("[bold]{task.fields[done]}/{task.total:.0f} tasks"),),
                        lambda t: f"{t['done']}/{t['total']:.0f} tasks", quiet) as bar:
         task = bar.add_task("starting", total=total, done=0)
 
