@@ -16,7 +16,9 @@
                it, one above it is left alone (the strongest clutch is not counted twice).
                Each G_c's sensitivity is scaled to the size of G's (divided by its largest
                absolute value, times the ON state's largest), so a clutch carrying nothing
-               yet still counts.  Measured in docs/notes/design.md, "Balance".
+               yet still counts.  w may differ per motion (``balance = { arms_raise = 2 }``:
+               the other motions have no ``solo:`` states and no reward).  Measured in
+               docs/notes/design.md, "Balance".
 
 How the motions combine (``[design] combine``, the active objective):
 
@@ -39,7 +41,7 @@ from __future__ import annotations
 import numpy as np
 
 from kgarment.errors import unknown
-from kgarment.problem.spec import COMBINE_NAMES
+from kgarment.problem.spec import COMBINE_NAMES, balance_weight
 from kgarment.problem.spec import OBJECTIVE_NAMES as OBJECTIVES
 
 BALANCE_SHARE = 0.25  # the balance term pushes a clutch's share up to this (loaded: 0.10)
@@ -115,12 +117,13 @@ def combined_objective(combine: str, terms: dict[str, float]) -> float:
 
 
 def motion_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], motions,
-                         lockout: float = 0.0, balance: float = 0.0,
+                         lockout: float = 0.0, balance=0.0,
                          energy: dict[tuple[str, str], float] | None = None,
                          weights: dict[str, float] | None = None) -> dict[str, np.ndarray]:
     """{motion: (m,) its normalised sensitivity} from per-(motion, state) sensitivities,
     each (m,); ``lockout`` weighs the ``lock:`` states, ``balance`` the ``solo:`` states
-    (both the active objective; the balance needs the states' ``energy``, J); ``weights``
+    (both the active objective; a number, or {motion: weight}; the balance needs the
+    states' ``energy``, J); ``weights``
     (:func:`motion_weights`) scales each motion's (None: 1)."""
     out = {}
     for motion in motions:
@@ -129,12 +132,13 @@ def motion_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], mo
             gain = on - off
             for lock in _locks(alpha, motion) if lockout > 0 else ():
                 gain = gain - lockout * (lock - off)
-            if balance > 0 and _solo_keys(alpha, motion):
+            b = balance_weight(balance, motion)
+            if b > 0 and _solo_keys(alpha, motion):
                 if energy is None:
                     raise ValueError("the balance term needs the states' energies")
                 for key, w in balance_weights(energy, motion).items():
                     g = alpha[key] - off
-                    gain = gain + balance * w * g * (on.max() / max(np.abs(g).max(), 1e-300))
+                    gain = gain + b * w * g * (on.max() / max(np.abs(g).max(), 1e-300))
             out[motion] = gain / max(on.max(), 1e-300)
         else:
             state = states_needed(kind)[0]
@@ -146,7 +150,7 @@ def motion_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], mo
 
 
 def combine_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], motions,
-                          lockout: float = 0.0, balance: float = 0.0,
+                          lockout: float = 0.0, balance=0.0,
                           energy: dict[tuple[str, str], float] | None = None,
                           weights: dict[str, float] | None = None) -> np.ndarray:
     """(m,) combined sensitivity: the sum over motions of :func:`motion_sensitivities`."""
@@ -157,7 +161,7 @@ def combine_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], m
 
 
 def objective_terms(kind: str, energy: dict[tuple[str, str], float], reference: dict[tuple[str, str], float],
-                    motions, lockout: float = 0.0, balance: float = 0.0) -> dict[str, float]:
+                    motions, lockout: float = 0.0, balance=0.0) -> dict[str, float]:
     """{motion: its term of the objective}: the (ON - OFF) energy (less ``lockout`` times
     each ``lock:`` state's energy beyond OFF, plus ``balance`` times the balance term
     sum_c h(G_c)), or the energy, divided by the fully reinforced design's energy in the
@@ -169,8 +173,9 @@ def objective_terms(kind: str, energy: dict[tuple[str, str], float], reference: 
             gain = energy[(motion, "on")] - off
             for lock in _locks(energy, motion) if lockout > 0 else ():
                 gain -= lockout * (lock - off)
-            if balance > 0:
-                gain += balance * _balance_value(energy, motion)
+            b = balance_weight(balance, motion)
+            if b > 0:
+                gain += b * _balance_value(energy, motion)
             out[motion] = gain / reference[(motion, "on")]
         else:
             s = states_needed(kind)[0]
@@ -179,7 +184,7 @@ def objective_terms(kind: str, energy: dict[tuple[str, str], float], reference: 
 
 
 def objective_value(kind: str, energy: dict[tuple[str, str], float], reference: dict[tuple[str, str], float],
-                    motions, lockout: float = 0.0, balance: float = 0.0, combine: str = "sum") -> float:
+                    motions, lockout: float = 0.0, balance=0.0, combine: str = "sum") -> float:
     """Scalar objective for convergence tracking: :func:`objective_terms` combined
     (:func:`combined_objective`)."""
     return combined_objective(combine, objective_terms(kind, energy, reference, motions, lockout, balance))

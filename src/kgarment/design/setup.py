@@ -23,6 +23,7 @@ from kgarment.errors import KgarmentError
 from kgarment.garment import Garment
 from kgarment.garment.topology import boundary_loops, face_adjacency, triangle_areas
 from kgarment.problem import BesoParams, Problem, build_model, solver_options
+from kgarment.problem.spec import balance_weight
 from kgarment.sim import Motion, SimModel, SimState, SolverOptions, garment_motions, solve_states
 
 log = logging.getLogger(__name__)
@@ -51,7 +52,8 @@ class DesignSetup:
     a motion not in it switches every clutch on);  lockout : weight of the penalty on what
     other motions' sets store in a motion (the active objective's ``lock:`` states);
     balance : weight of the reward for each clutch of a motion's set carrying load on its
-    own (the active objective's ``solo:`` states);  guard : the step guard's share
+    own (the active objective's ``solo:`` states): one number for every motion, or
+    {motion: weight} (the setup's motion names; a motion not in it: 0);  guard : the step guard's share
     (:mod:`kgarment.design.guard`; 0: off);  combine : "sum" or "product" of the motions'
     terms (:mod:`kgarment.design.objective`);  wearers : {motion: Wearer} of a multi-body
     design (every motion ``MOTION@BODY``; {} for one body: ``model`` and ``areas`` serve all);
@@ -77,7 +79,7 @@ class DesignSetup:
     skin_start: bool = False
     activation: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     lockout: float = 0.0
-    balance: float = 0.0
+    balance: float | dict[str, float] = 0.0
     guard: float = 0.0
     combine: str = "sum"
     wearers: dict[str, Wearer] = field(default_factory=dict, repr=False)
@@ -90,7 +92,7 @@ class DesignSetup:
               solver: SolverOptions, evolution_solver: SolverOptions | None = None,
               protected: np.ndarray | None = None, skin_start: bool = False,
               activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0,
-              balance: float = 0.0, guard: float = 0.0, combine: str = "sum",
+              balance: float | dict[str, float] = 0.0, guard: float = 0.0, combine: str = "sum",
               wearers: dict[str, Wearer] | None = None, path_start: int = 0,
               path_frames: dict[str, tuple[Motion, ...]] | None = None) -> DesignSetup:
         """Precompute areas, filter, adjacency and clutch ends for ``model`` (the garment on
@@ -111,7 +113,7 @@ class DesignSetup:
                    face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0,
                    attached.astype(np.int64), loops, skin_start,
                    {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout),
-                   float(balance), float(guard), combine, dict(wearers or {}), int(path_start),
+                   dict(balance) if isinstance(balance, dict) else float(balance), float(guard), combine, dict(wearers or {}), int(path_start),
                    dict(path_frames or {}))
 
     def model_of(self, motion: str) -> SimModel:
@@ -257,7 +259,7 @@ class DesignSetup:
         clutch of its set alone ON; none without a balance or with fewer than two clutches."""
         own = self.on_activation(motion)
         on = np.flatnonzero(own > 0)
-        if self.objective != "active" or self.balance <= 0 or len(on) < 2:
+        if self.objective != "active" or balance_weight(self.balance, motion) <= 0 or len(on) < 2:
             return []
         out = []
         for k in on:
@@ -332,7 +334,8 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
                              protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin),
                              skin_start=problem.solver.skin_start, activation=activation, wearers=wearers,
                              lockout=d.lockout if d.objective == "active" else 0.0,
-                             balance=d.balance if d.objective == "active" else 0.0, guard=d.guard,
+                             balance={m: d.balance_of(m) for m in motions} if d.objective == "active" else 0.0,
+                             guard=d.guard,
                              combine=d.combine if d.objective == "active" else "sum",
                              path_start=path_start, path_frames=path_frames)
 

@@ -64,10 +64,11 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
     clutches = _clutches(data["clutches"], base) if "clutches" in data else None
     design = _design(data.get("design", {}))
     _check_levels(design.levels, garment.subdivision)
-    bad = [m for m, _ in design.early if m not in names]
-    if bad:
-        raise KgarmentError(f"[design] early: {bad[0]!r} is not a motion of the problem; its motions: "
-                            f"{', '.join(names)}")
+    for key, table in (("early", design.early), ("balance", design.balance)):
+        bad = [m for m, _ in table if m not in names] if isinstance(table, tuple) else []
+        if bad:
+            raise KgarmentError(f"[design] {key}: {bad[0]!r} is not a motion of the problem; its motions: "
+                                f"{', '.join(names)}")
     if design.early and (body.phenotypes or body.model != "anny"):
         raise KgarmentError("[design] early: the beginning of a motion is posed on one Anny body (leave early out "
                             "for a multi-body design or a mesh-sequence body)")
@@ -326,13 +327,33 @@ def _subdivision(sub) -> int:
 def _design(d: dict) -> DesignSpec:
     """[design]: the objective, protection and the BESO fields (flat keys) -> DesignSpec."""
     beso_keys = {f.name for f in dataclasses.fields(BesoParams)}
-    own = {f.name for f in dataclasses.fields(DesignSpec)} - {"beso", "levels", "early"}
-    check_keys("design", d, sorted(own) + ["levels", "early"] + [f.name for f in dataclasses.fields(BesoParams)])
+    own = {f.name for f in dataclasses.fields(DesignSpec)} - {"beso", "levels", "early", "balance"}
+    check_keys("design", d, sorted(own) + ["balance", "levels", "early"]
+               + [f.name for f in dataclasses.fields(BesoParams)])
     ranges = C.DESIGN_RANGES
     beso = section(BesoParams, "design", {k: v for k, v in d.items() if k in beso_keys}, {"filter": FILTERS}, ranges)
     rest = section(_DesignOwn, "design", {k: v for k, v in d.items() if k in own},
                    {"objective": OBJECTIVE_NAMES, "combine": COMBINE_NAMES}, ranges)
-    return DesignSpec(beso=beso, **asdict(rest), levels=_levels(d.get("levels", [])), early=_early(d.get("early", {})))
+    return DesignSpec(beso=beso, **asdict(rest), levels=_levels(d.get("levels", [])), early=_early(d.get("early", {})),
+                      balance=_balance(d.get("balance", 0.0)))
+
+
+def _balance(v) -> float | tuple[tuple[str, float], ...]:
+    """[design] balance = w, or {MOTION = w, ...}: each w in the allowed range (the motions
+    are checked against [motions] use in :func:`parse_problem`)."""
+    lo, hi = C.DESIGN_RANGES["balance"]
+
+    def weight(w, where: str) -> float:
+        if isinstance(w, bool) or not isinstance(w, (int, float)) or not lo <= w <= hi:
+            raise KgarmentError(f"[design] balance{where} = {w!r}; allowed: a number in [{lo:g}, {hi:g}]")
+        return float(w)
+
+    if isinstance(v, dict):
+        return tuple((str(m), weight(w, f": {m}")) for m, w in v.items())
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return weight(v, "")
+    raise KgarmentError(f"[design] balance = {v!r} must be a number in [{lo:g}, {hi:g}] (every motion) or a table "
+                        'of motion = weight, e.g. { "arms_raise" = 2.0 }')
 
 
 def _early(v) -> tuple[tuple[str, float], ...]:
@@ -372,7 +393,6 @@ class _DesignOwn:
     protect_attachments: bool = False
     protect_clutch_margin: float = 0.0
     lockout: float = 0.0
-    balance: float = 0.0
     guard: float = 0.0
     combine: str = "sum"
 

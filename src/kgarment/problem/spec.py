@@ -158,7 +158,10 @@ class DesignSpec:
     lockout : weight of the penalty on the energy that other motions' activation sets
     store in a motion (0: none; :mod:`kgarment.design.objective`);
     balance : weight of the reward for every clutch of a motion's set carrying load on its
-    own (``solo:`` states; 0: none; :mod:`kgarment.design.objective`);
+    own (``solo:`` states; 0: none; :mod:`kgarment.design.objective`), every motion the
+    same, or ((motion, weight), ...) for the motions named only (a table in the file: the
+    solo states cost one solve per clutch and motion, so a five-motion garment can reward
+    its clutches in the one motion each should carry);
     levels : coarser subdivision levels to design at first, increasing, each below the
     garment's (coarse-to-fine, :mod:`kgarment.design.refine`); () designs at the garment's
     level throughout;  guard : a BESO step after which some motion's objective term falls
@@ -178,7 +181,7 @@ class DesignSpec:
     protect_attachments: bool = False
     protect_clutch_margin: float = 0.0
     lockout: float = 0.0
-    balance: float = 0.0
+    balance: float | tuple[tuple[str, float], ...] = 0.0
     levels: tuple[int, ...] = ()
     guard: float = 0.0
     combine: str = "sum"
@@ -192,7 +195,7 @@ class DesignSpec:
         out.update(protect_attachments=self.protect_attachments, protect_clutch_margin=self.protect_clutch_margin,
                    lockout=self.lockout)
         if self.balance:  # written only when used: problem files and hashes of earlier runs stay as they were
-            out["balance"] = self.balance
+            out["balance"] = dict(self.balance) if isinstance(self.balance, tuple) else self.balance
         if self.levels:
             out["levels"] = list(self.levels)
         if self.guard:
@@ -202,6 +205,22 @@ class DesignSpec:
         if self.early:
             out["early"] = dict(self.early)
         return out
+
+    def balance_of(self, motion: str) -> float:
+        """The balance weight of ``motion`` (a motion name of [motions] use)."""
+        return balance_weight(self.balance, motion)
+
+
+def balance_weight(balance, motion: str) -> float:
+    """The balance weight of ``motion`` from ``balance``: a number (every motion), a
+    mapping or ((motion, weight), ...) (the motions named; others 0).  A design state's
+    name ``MOTION@...`` (a wearer's, or the beginning of a motion) takes MOTION's weight."""
+    if isinstance(balance, (int, float)):
+        return float(balance)
+    table = dict(balance)
+    if motion in table:
+        return float(table[motion])
+    return float(table.get(motion.partition("@")[0], 0.0))
 
 
 @dataclass(frozen=True)

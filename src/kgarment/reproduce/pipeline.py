@@ -105,7 +105,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
              "garment": g.name, "faces": int(g.n_faces), "clutches": len(ev.strips), "motions": ev.motions,
              "states": ev.n_states, "run": _run_summary(ours), "compliance_run": _run_summary(comp),
              "activation": {m: dict(v) for m, v in problem.activation}, "lockout": problem.design.lockout,
-             "balance": problem.design.balance, "early": dict(problem.design.early),
+             "balance": problem.design.flat().get("balance", 0.0), "early": dict(problem.design.early),
              "evaluations": {}, "images": {}}
     paths = {}
     for kind, d in designs.items():

@@ -180,8 +180,7 @@ def build_markdown(doc: dict, figures: dict) -> str:
             md += [f"### {e['title']}", "",
                    f"`{e['name']}`: {e['garment']}, {e['faces']} faces, {e['clutches']} clutch(es), budget "
                    f"{100 * e['budget']:.0f}%"
-                   + (f", clutch balance {e['balance']:g} (`[design] balance`: every clutch's own load path "
-                      "rewarded)" if e.get("balance") else "")
+                   + balance_note(e)
                    + early_note(e)
                    + f"; our run took {e['run']['iterations']} iterations, {e['run']['seconds'] / 60:.1f} min.", ""]
             head = ["design", *[f"{m} ON / OFF" for m in e["motions"]], "parts (clutch-linked / not)", "clutch ends on reinf.", "area"]
@@ -301,6 +300,15 @@ def write_report(out: Path, doc: dict | None = None) -> tuple[Path, Path]:
     (out / "report.md").write_text(md)
     (out / "report.html").write_text(markdown_to_html(md, "kgarment: reproduction of the paper", base=out))
     return out / "report.md", out / "report.html"
+
+
+def balance_note(e: dict) -> str:
+    """The report's words for an experiment's ``[design] balance`` ("" without one)."""
+    b = e.get("balance") or 0.0
+    if not b:
+        return ""
+    where = f"{b:g}" if isinstance(b, (int, float)) else ", ".join(f"{w:g} in {m}" for m, w in b.items())
+    return f", clutch balance {where} (`[design] balance`: every clutch's own load path rewarded)"
 
 
 def early_note(e: dict) -> str:
