@@ -39,7 +39,8 @@ def targets(doc: dict) -> list[str]:
             "torso hold load: an open strip of reinforcement slides. A clutch carries load only in series between "
             "such anchors, and the objective routes each motion through its strongest clutch; `[design] balance` "
             "rewards every clutch of a motion's set for carrying load on its own (one more state per clutch and "
-            "motion; the single-motion shirts use it).",
+            "motion; the single-motion shirts use it, and the five-motion long sleeve in arms raise only, "
+            "`balance = { arms_raise = 2.0 }`, where without it the V carried no motion).",
             "- A membrane on a frictionless body has several equilibria: one BESO step can move a motion's ON "
             "state to another (the sleeve turns about the arm until its clutch lies over the elbow's axis) and "
             "BESO then cuts the idle path; `[design] guard` takes such steps back (the multi-motion sleeves and "
