@@ -113,8 +113,8 @@ class DesignSetup:
                    face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0,
                    attached.astype(np.int64), loops, skin_start,
                    {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout),
-                   dict(balance) if isinstance(balance, dict) else float(balance), float(guard), combine, dict(wearers or {}), int(path_start),
-                   dict(path_frames or {}))
+                   dict(balance) if isinstance(balance, dict) else float(balance), float(guard), combine,
+                   dict(wearers or {}), int(path_start), dict(path_frames or {}))
 
     def model_of(self, motion: str) -> SimModel:
         """The SimModel ``motion`` is solved on (its wearer's garment)."""
