@@ -22,7 +22,8 @@ PENALTY = 1.6     # material interpolation exponent p: Y(d) = d^p Y1 + (1 - d^p)
 SIM_MODEL = 2
 SOLVER_TOL = 1e-5      # a direct kgarment.sim.solve_states call (the library default)
 DESIGN_TOL = 1e-3      # [solver] tol: iteration 0, the fully reinforced reference (why: problem.spec.SolverSpec)
-EVOLUTION_TOL = 1e-2   # [solver] evolution_tol: every later design iteration, at A* too (since 2026-11-28)
+EVOLUTION_TOL = 3e-2   # [solver] evolution_tol: every later design iteration, at A* too (since 2026-11-28;
+                       # 3e-2 since 2026-11-29, 1e-2 before: benchmarks/README.md)
 EVALUATION_TOL = 1e-4  # evaluations (evaluate, simulate, studio, reproduce, fabricate) solve to
                        # min([solver] tol, EVALUATION_TOL)
 MAX_NEWTON = 200       # [solver] max_iter: Newton iterations per state
