@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from tiny_problems import TINY_SLEEVE
 
-from kgarment.cli import main
 from kgarment import constants as C
+from kgarment.cli import main
 from kgarment.constants import target_reached
 from kgarment.design import Evaluator, finish, load_design, load_design_history, open_run
 from kgarment.errors import KgarmentError

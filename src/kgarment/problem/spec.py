@@ -248,9 +248,11 @@ class SolverSpec:
     about 2% with the exchange of faces whether the states are solved to 1e-2 or to 1e-3
     (until 2026-11-28 they were solved to ``tol``).  3e-2 (since 2026-11-29, 1e-2 before):
     the three-motion shirt's final designs at 3e-2 and 1e-2 are 35 of 3,229 faces apart at
-    subdivision 0 and 21 of 12,916 at subdivision 1, rho ON within 2.5% and every clutch
-    load within 10%, for 42% fewer Newton iterations in the loop at subdivision 1
-    (``benchmarks/README.md``).  Set it equal to ``tol`` to solve every iteration alike.
+    subdivision 0 and 21 of 12,916 at subdivision 1, rho ON within 1%, every clutch's share
+    within 0.02 and its tension within 10%, for 42% fewer Newton iterations in the loop at
+    subdivision 1; the arm-flexion sleeve's rho ON over the motion from rest 1.14 against
+    1.18, for 59% fewer (``benchmarks/README.md``).  Set it equal to ``tol`` to solve every
+    iteration alike.
     max_iter : Newton iterations per state.
     skin_start : every design iteration also solves each state from the evaluator's two
     starts (the skin-tight garment and the fully reinforced garment's equilibrium) and keeps
