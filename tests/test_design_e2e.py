@@ -11,9 +11,8 @@ import numpy as np
 import pytest
 from tiny_problems import TINY_SLEEVE
 
-from kgarment import constants as C
 from kgarment.cli import main
-from kgarment.constants import target_reached
+from kgarment.constants import DESIGN_TOL, EVOLUTION_TOL, target_reached
 from kgarment.design import Evaluator, finish, load_design, load_design_history, open_run
 from kgarment.errors import KgarmentError
 from kgarment.problem import load_problem
@@ -67,7 +66,7 @@ def test_the_area_follows_the_schedule(runs):
     for k, r in enumerate(rows):
         assert r["target"] == pytest.approx(max(p.target_area, (1 - p.er) ** k))
         assert abs(r["area"] - r["target"]) <= p.ar_max + 1e-9
-        assert r["solver_tol"] == (C.DESIGN_TOL if k == 0 else C.EVOLUTION_TOL)  # [solver] tol, then evolution_tol
+        assert r["solver_tol"] == (DESIGN_TOL if k == 0 else EVOLUTION_TOL)  # [solver] tol, then evolution_tol
     assert rows[-1]["target"] == p.target_area  # A* reached: ceil(log 0.6 / log 0.85) = 4 steps
     assert math.ceil(math.log(p.target_area) / math.log(1 - p.er)) == 4
 
