@@ -1,4 +1,4 @@
-"""Coarse-to-fine design (design.refine): the subdivision maps, and a tiny run end to end."""
+"""Coarse-to-fine design (design.refine): the subdivision maps, and a tiny run end to end (its control screen at the coarse level)."""
 
 from __future__ import annotations
 
@@ -88,5 +88,9 @@ def test_a_coarse_to_fine_run(tmp_path, anny_body, monkeypatch):
     a0 = triangle_areas(g0.rest_vertices, g0.faces)
     assert fine[1]["target"] == target and fine[1]["area"] == pytest.approx(a0[nxt].sum() / a0.sum(), rel=1e-9)
     assert (run / "final" / "design.npz").is_file()
+    # the control screen ran once, at the coarsest level, into the run's own folder
+    (c,) = json.loads((run / "control.json").read_text())
+    assert c["motion"] == "arm_flexion.right" and c["subdivision"] == 0 and c["full_on_J"] >= c["full_off_J"] > 0
+    assert not (run / "level0" / "control.json").exists()
     # the run reports itself finished, and a second call reuses it
     assert main(["-q", "design", "p.toml", "--out", "run"]) == 2

@@ -163,8 +163,8 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
     folder stays resumable).  Returns the run with its final state, written paths and
     evaluation."""
     def after(st: LoopState) -> None:
-        if len(st.metrics) == 1 and dr.setup.objective == "active":
-            check_control(dr, st)
+        if len(st.metrics) == 1 and dr.setup.objective == "active" and not coarse_levels(dr.problem):
+            check_control(dr, st)  # coarse-to-fine: at the coarsest level (start_from_coarse)
         if progress is not None:
             progress(st)
         if cancelled is not None and not st.done and cancelled():
@@ -190,7 +190,13 @@ def start_from_coarse(dr: DesignRun, after: Callable[[LoopState], None],
                       cancelled: Callable[[], bool] | None = None) -> DesignRun:
     """Coarse-to-fine (:mod:`kgarment.design.refine`): the coarse levels in their own run
     folders (``RUN/level<L>``, resumed where they stopped), then this run's iteration 0 and
-    the coarse run's state transferred to this level; checkpointed."""
+    the coarse run's state transferred to this level; checkpointed.  The control screen
+    (:func:`check_control`) runs once, after the coarsest level's iteration 0, into this
+    run's ``control.json``: it judges gains of 0.5% against the paper's 1-4%, which the
+    level hardly changes (the three-motion shirt's arms forward, arms raise and bend forward:
+    1.74 / 1.47 / 4.28% at subdivision 0, 1.87 / 1.41 / 3.93% at 1, 1.72 / 1.47 / 3.73% at
+    2), and at the garment's level it took most of the 9.3 min before the first fine
+    iteration at subdivision 2 (benchmarks/README.md)."""
     if not (dr.run / "checkpoint.npz").is_file():
         save_checkpoint(dr.run, dr.state)  # resumable while the coarse levels run
     device = dr.setup.solver.device
@@ -198,7 +204,11 @@ def start_from_coarse(dr: DesignRun, after: Callable[[LoopState], None],
     def open_level(problem: Problem, folder: Path, resume: bool) -> DesignRun:
         return open_run(problem, folder, resume=resume, force=not resume, device=device, body=dr.body)
 
-    coarse_setup, coarse = run_coarse(dr.run, dr.problem, open_level, cancelled=cancelled)
+    def first(level_run: DesignRun, st: LoopState) -> None:
+        if level_run.setup.objective == "active":
+            check_control(level_run, st, folder=dr.run)
+
+    coarse_setup, coarse = run_coarse(dr.run, dr.problem, open_level, cancelled=cancelled, first=first)
     st = iterate(dr.setup, dr.state)  # the fully reinforced garment at this level: the references
     st = transfer(coarse_setup, coarse, dr.setup, st)
     save_checkpoint(dr.run, st)
@@ -206,13 +216,16 @@ def start_from_coarse(dr: DesignRun, after: Callable[[LoopState], None],
     return dataclasses.replace(dr, state=st)
 
 
-def check_control(dr: DesignRun, st: LoopState) -> list[Control]:
+def check_control(dr: DesignRun, st: LoopState, folder: Path | None = None) -> list[Control]:
     """After iteration 0: which motions the clutches can control at all
-    (:mod:`kgarment.design.control`), written to ``control.json``; a warning with what to
-    change for each one they cannot."""
+    (:mod:`kgarment.design.control`), written to ``control.json`` in ``folder`` (default:
+    the run's; each row with the garment's subdivision level it was solved at); a warning
+    with what to change for each one they cannot."""
     controls = control_check(dr.setup, st.warm)
     if controls:
-        atomic_write_text(dr.run / "control.json", json.dumps([c.to_json() for c in controls], indent=1))
+        level = dr.problem.garment.subdivision
+        atomic_write_text((folder or dr.run) / "control.json",
+                          json.dumps([{**c.to_json(), "subdivision": level} for c in controls], indent=1))
     for c in controls:
         if not c.controllable:
             log.warning("%s", c.advice())

@@ -95,10 +95,12 @@ def transfer(coarse_setup: DesignSetup, coarse: LoopState, fine_setup: DesignSet
 
 
 def run_coarse(run: Path, problem: Problem, open_level: Callable, progress: Callable | None = None,
-               cancelled: Callable[[], bool] | None = None) -> tuple[DesignSetup, LoopState]:
+               cancelled: Callable[[], bool] | None = None,
+               first: Callable | None = None) -> tuple[DesignSetup, LoopState]:
     """Run (or resume, or reuse) every coarse level of ``problem`` in ``run / "level<L>"``;
     returns the last level's setup and state.  ``open_level(problem, folder, resume)`` opens
-    a level's run (:func:`kgarment.design.driver.open_run`)."""
+    a level's run (:func:`kgarment.design.driver.open_run`); ``first(level_run, state)``
+    after the coarsest level's iteration 0 (the control screen)."""
     prev = None
     for i, level in enumerate(coarse_levels(problem)):
         folder = run / f"level{level}"
@@ -107,6 +109,8 @@ def run_coarse(run: Path, problem: Problem, open_level: Callable, progress: Call
         st, p = dr.state, dr.setup.params
         if status == "new":
             st = iterate(dr.setup, st)  # its own iteration 0 (the references at this level)
+            if prev is None and first is not None:
+                first(dr, st)
             if prev is not None:
                 st = transfer(prev[0], prev[1], dr.setup, st)
             save_checkpoint(folder, st)
