@@ -127,6 +127,33 @@ def test_a_stuck_exact_hessian_goes_on_adaptive(monkeypatch, caplog):
     assert abs(r.total_energy - ref.total_energy) < 1e-6 * abs(ref.total_energy)
 
 
+def test_auto_hessian_is_shifted_on_coarse_garments_and_adaptive_on_fine_ones(monkeypatch):
+    """``hessian="auto"`` (the evaluations') follows the shifted exact Hessian's iterates bit
+    for bit on a garment of at most ``ADAPTIVE_VERTICES`` vertices and the adaptive one's
+    above (on the twisted tube with its clutch they end in equilibria 0.2% apart in energy,
+    both converged: a buckled strip's are not unique)."""
+    from kgarment.sim import options
+
+    model, motion = tube_scene("paper")
+    state = SimState.create(motion, [1.0])
+    d = np.where(np.arange(model.n_faces) % 3 == 0, 1.0, 0.001)
+    runs = {h: solve_states(model, d, [state], options=SolverOptions(hessian=h, tol=1e-6))[0]
+            for h in ("shifted", "adaptive", "auto")}
+    monkeypatch.setattr(options, "ADAPTIVE_VERTICES", model.n_garment - 1)
+    fine = solve_states(model, d, [state], options=SolverOptions(hessian="auto", tol=1e-6))[0]
+    assert all(r.converged for r in [*runs.values(), fine])
+    assert runs["auto"].convergence.history == runs["shifted"].convergence.history
+    assert fine.convergence.history == runs["adaptive"].convergence.history
+    assert runs["shifted"].convergence.history != runs["adaptive"].convergence.history
+    # the evaluations' choice; design iterations keep the shifted Hessian
+    from kgarment.problem import parse_problem
+    from kgarment.problem.build import solver_options
+
+    p = parse_problem({})
+    assert solver_options(p, "evaluate").hessian == "auto"
+    assert solver_options(p, "design").hessian == solver_options(p, "evolution").hessian == "shifted"
+
+
 @pytest.mark.parametrize("hessian", ["shifted", "adaptive"])
 def test_reusing_the_full_steps_evaluation_changes_no_iterate(monkeypatch, hessian):
     """The full step's trial evaluation (with derivatives) is reused as the next iterate's:

@@ -26,6 +26,9 @@ EVOLUTION_TOL = 3e-2   # [solver] evolution_tol: every later design iteration, a
                        # 3e-2 since 2026-11-29, 1e-2 before: benchmarks/README.md)
 EVALUATION_TOL = 1e-4  # evaluations (evaluate, simulate, studio, reproduce, fabricate) solve to
                        # min([solver] tol, EVALUATION_TOL)
+ADAPTIVE_VERTICES = 4000  # evaluations solve garments of more vertices with the adaptive Hessian, not the
+                          # shifted exact one (kgarment.sim.newton, "auto"; the shirt: 1,702 vertices at
+                          # subdivision 0, 6,635 at 1, 26,188 at 2; the arm sleeve 302, 1,167, 4,586)
 MAX_NEWTON = 200       # [solver] max_iter: Newton iterations per state
 MAX_WORKERS = 8        # [solver] workers = 0 means one process per core, at most this many
 

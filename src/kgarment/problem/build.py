@@ -108,7 +108,9 @@ def solver_options(problem: Problem, purpose: str = "design", device: str = "cpu
     ``design``: ``tol`` (iteration 0, the fully reinforced reference);  ``evolution``:
     ``max(tol, evolution_tol)`` (every later design iteration);  ``evaluate``:
     ``min(tol, EVALUATION_TOL)`` (measuring a design: evaluate, simulate, the studio,
-    reproduce, fabricate).  ``workers = 0`` becomes one process per core, at most
+    reproduce, fabricate), with the Hessian strategy ``"auto"``: the adaptive one on fine
+    garments, whose slow slides the shifted one crawls through (``kgarment.sim.newton``).
+    ``workers = 0`` becomes one process per core, at most
     :data:`kgarment.constants.MAX_WORKERS`.
     """
     if purpose not in PURPOSES:
@@ -116,5 +118,6 @@ def solver_options(problem: Problem, purpose: str = "design", device: str = "cpu
     s = problem.solver
     tol = {"design": s.tol, "evolution": max(s.tol, s.evolution_tol), "evaluate": min(s.tol, C.EVALUATION_TOL)}[purpose]
     return SolverOptions(method=s.method, tol=tol, max_iter=s.max_iter, device=device,
+                         hessian="auto" if purpose == "evaluate" else "shifted",
                          workers=s.workers or min(os.cpu_count() or 1, C.MAX_WORKERS))
 

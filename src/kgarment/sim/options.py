@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from kgarment.constants import FRICTION_LAGS, MAX_NEWTON, SOLVER_TOL
+from kgarment.constants import ADAPTIVE_VERTICES, FRICTION_LAGS, MAX_NEWTON, SOLVER_TOL
 
 FACTORIZATIONS = ("auto", "pardiso", "simplicial", "supernodal", "splu")
 
@@ -41,7 +41,8 @@ class SolverOptions:
     projection : Newton element Hessian PSD projection, "analytic" | "full" (9x9 eigh);
     exact_contact_hessian : full contact Hessian instead of Gauss-Newton in projected steps;
     hessian : "shifted" (exact Hessian + shift until positive definite), "adaptive"
-    (projected, exact after full steps) or "projected" (see ``newton``);
+    (projected, exact after full steps), "projected", or "auto" ("adaptive" on garments of
+    more than ``ADAPTIVE_VERTICES`` vertices, else "shifted"; see ``newton``);
     max_shifts : shift increases (x10) tried before falling back to projection;
     rescue_shifts : for a state that did not converge (or stalled), one more solve allowing
     this many shift increases (0: none), from the same start where the solve stopped early
@@ -123,12 +124,18 @@ class SolverOptions:
             return self.lag_contact
         return self.tol >= 1e-3
 
+    def strategy(self, n_vertices: int) -> str:
+        """The Hessian strategy for a garment of ``n_vertices`` (``hessian``, "auto" resolved)."""
+        if self.hessian != "auto":
+            return self.hessian
+        return "adaptive" if n_vertices > ADAPTIVE_VERTICES else "shifted"
+
     def __post_init__(self):
         if self.method not in ("newton", "lbfgs"):
             raise ValueError(f"unknown method {self.method!r}")
         if self.projection not in ("analytic", "abs", "full", "none"):
             raise ValueError(f"unknown projection {self.projection!r}")
-        if self.hessian not in ("shifted", "adaptive", "projected"):
+        if self.hessian not in ("shifted", "adaptive", "projected", "auto"):
             raise ValueError(f"unknown hessian strategy {self.hessian!r}")
         if self.factorization not in FACTORIZATIONS:
             raise ValueError(f"factorization must be one of {', '.join(map(repr, FACTORIZATIONS))}, "
