@@ -115,7 +115,8 @@ def main() -> None:
                   f"{res['clutches']}")
             for k, v in res["loads"].items():
                 print(f"    load {k:34s} {v}")
-        figures[name] = {k: v for k, v in res.items() if k not in ("rho", "loads")}
+        figures[name] = {**{k: v for k, v in res.items() if k != "rho"}, "last_rho": res["rho"],
+                         "date": time.strftime("%Y-%m-%d")}
     print(f"run folders in {base}")
     if args.json:
         sys.path.insert(0, str(Path(__file__).parent))
