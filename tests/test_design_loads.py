@@ -211,6 +211,42 @@ def test_a_load_state_that_needs_more_iterations_goes_on_from_where_it_stopped(t
     assert r.total_energy == pytest.approx(full.total_energy, rel=1e-6)
 
 
+def test_a_load_state_still_sliding_after_going_on_is_switched_on_in_steps(tube, tube_loads, monkeypatch):
+    """A one-clutch state that has converged neither from its start nor going on from where
+    it stopped (here: ``go_on`` hands back where it stopped, a slide that has not finished) is
+    switched on in steps from the motion's OFF equilibrium at ``LOAD_TOL``, not solved through
+    the evaluator's two starts (which would first solve the fully reinforced garment in its
+    activation).  It ends at an equilibrium (checked independently of the solver) within 1% of
+    the one an unlimited solve from the nearer start reaches: the state has two, 0.3% apart in
+    energy, and the path through the steps reaches the higher one (at 1e-6 as at 1e-3)."""
+    import dataclasses
+
+    import torch
+
+    from kgarment.constants import LOAD_TOL
+    from kgarment.design.loads import activation_equilibria, nearer_start
+    from kgarment.sim.solve import prepare_state
+
+    evaluator, design = tube
+    known = {(s.motion, s.state): s.result for s in tube_loads.states}
+    keyed = evaluator.activation_states([1.0, 0.0], ["pull"], "only linked")
+    setup = evaluator.setup
+    start = nearer_start(setup, design, keyed[0][1], [known[("pull", "on")].x, known[("pull", "off")].x])
+    free = dataclasses.replace(setup.solver, tol=LOAD_TOL, rescue_shifts=0)
+    (full,) = setup.solve_now(design, [keyed[0][1]], [start], free)
+    n = full.convergence.iterations
+    assert full.converged and n >= 3
+    short = Evaluator(dataclasses.replace(setup, solver=dataclasses.replace(setup.solver, max_iter=n - 1)))
+    monkeypatch.setattr(DesignSetup, "go_on", lambda self, design, states, stopped, options=None: list(stopped))
+    monkeypatch.setattr(Evaluator, "equilibria", lambda *a, **k: pytest.fail("fell back to the two starts"))
+    (r,) = activation_equilibria(short, design, keyed, known).values()
+    assert r.converged and r.convergence.tolerance == LOAD_TOL
+    prob = prepare_state(setup.model, design, keyed[0][1], setup.solver)
+    _, grad, _ = prob.evaluate(torch.as_tensor(r.x), order=1)
+    assert prob.residual(grad) <= LOAD_TOL
+    assert r.total_energy == pytest.approx(full.total_energy, rel=1e-2)
+
+
 def test_a_state_converged_from_neither_start_goes_on_from_the_nearer_end(tube):
     """The evaluator's two starts both cut off one iteration short of convergence: the state
     goes on from the end nearer convergence and reaches the equilibrium the unlimited solves

@@ -398,7 +398,7 @@ class Evaluator:
 
 
 def activation_continuation(setup: DesignSetup, design: np.ndarray, states: list[SimState],
-                            offs: list[StateResult | None] | None = None) -> list[StateResult]:
+                            offs: list[StateResult | None] | None = None, options=None) -> list[StateResult]:
     """Solve ``states`` by switching their clutches on in steps: each state's equilibrium
     with the clutches off (from the skin-tight start), then activations ``CONTINUATION`` times
     the state's, each from the previous equilibrium.  Returns per state the last step's
@@ -407,7 +407,7 @@ def activation_continuation(setup: DesignSetup, design: np.ndarray, states: list
     The states take each step together, one batch of solves per step (the workers share
     them).  ``offs``: per state its motion's clutches-off equilibrium from the skin-tight start
     where it is already solved (None: solve it): the same solve as the first step, so it is
-    not repeated.
+    not repeated.  ``options``: the setup's solver options unless given.
 
     For states whose stiff ON clutches make the direct solve slow: on the long sleeve's
     bend-forward state (preview resolution, its iteration-117 design) the direct cold
@@ -426,7 +426,8 @@ def activation_continuation(setup: DesignSetup, design: np.ndarray, states: list
         steps = [states[i] if f == 1.0 else SimState.create(
             states[i].motion, f * np.asarray(states[i].activation, dtype=np.float64), name=f"{states[i].name}@{f:g}")
             for i in todo]
-        done = dict(zip(todo, setup.solve(design, steps, warm_start=[xs[i] for i in todo]))) if todo else {}
+        done = dict(zip(todo, setup.solve(design, steps, warm_start=[xs[i] for i in todo], options=options))) \
+            if todo else {}
         for i in range(len(states)):
             r = done.get(i, offs[i] if k == 0 else None)
             iters[i] += r.convergence.iterations

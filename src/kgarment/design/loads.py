@@ -174,8 +174,10 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     Each starts from its motion's all-ON or all-OFF equilibrium (``known[(motion, "on" |
     "off")]``), whichever has the lower energy under the state's activation
     (:func:`nearer_start`), and is solved to :data:`LOAD_TOL`; a state that does not
-    converge in the solver's iterations goes on from where it stopped for as many again, and
-    one that does not converge then goes through the evaluator's two starts.  These solves
+    converge in the solver's iterations goes on from where it stopped for as many again, one
+    still sliding then has its clutches switched on in steps from the motion's OFF
+    equilibrium (:func:`kgarment.design.evaluate.activation_continuation`, at ``LOAD_TOL``),
+    and one that does not converge even so goes through the evaluator's two starts.  These solves
     have no rescue (a second solve with larger shifts, ``SolverOptions.rescue_shifts``) and
     do not warn about the states they leave unconverged: the two starts follow anyway (and
     warn where they fail too).  Measured on the main job's design (2026-11-27): its one
@@ -186,7 +188,14 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     iterations (residuals wandering between 0.01 and 1: the garment still sliding); going on
     from where they stopped converged all 7 in 6-157 more (470 in all), to the energies that 400
     iterations from the start give (within 7e-4 relative; the shares within 2e-4), instead
-    of the evaluator's two starts at its tolerance (``benchmarks/README.md``)."""
+    of the evaluator's two starts at its tolerance (``benchmarks/README.md``).  At
+    subdivision 2 (2026-11-29, the same shirt's design, 2 workers) 3 of the 18 (arms raise, one
+    clutch alone) still slid after those 400 iterations; the evaluator's two starts, which
+    first solve the fully reinforced garment in that activation, then solved them at 1e-4 in
+    22.6 minutes, converging only through their own continuation at the end.  Switched on in
+    steps at ``LOAD_TOL`` first, two of them converged in 5.5 minutes (5.673 and 5.760 J,
+    against 5.719 and 5.780 J before) and the third stopped at residual 0.14 at 12.610 J
+    (12.641 J converged before), so it still takes the two starts."""
     setup = evaluator.setup
     opts = dataclasses.replace(setup.solver, tol=max(setup.solver.tol, LOAD_TOL), rescue_shifts=0, on_fail="info")
     starts = [nearer_start(setup, design, st, [known[(key[0], "on")].x, known[(key[0], "off")].x])
@@ -197,6 +206,13 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     if slow:  # one more round from where they stopped (slow sliding, not a wrong start)
         again = setup.go_on(design, [keyed[i][1] for i in slow], [solved[i] for i in slow], opts)
         out.update({keyed[i][0]: r for i, r in zip(slow, again) if r.converged})
+    retry = [(key, st) for key, st in keyed if key not in out]
+    if retry:  # still sliding: the clutches switched on in steps from the motion's OFF equilibrium
+        from kgarment.design.evaluate import activation_continuation  # evaluate imports this module
+
+        stepped = activation_continuation(setup, design, [st for _, st in retry],
+                                          [known[(key[0], "off")] for key, _ in retry], options=opts)
+        out.update({key: r for (key, _), r in zip(retry, stepped) if r.converged})
     retry = [(key, st) for key, st in keyed if key not in out]
     if retry:
         log.info("%d state(s) go on from the evaluator's two starts: %s", len(retry),
