@@ -186,14 +186,14 @@ def test_a_design_already_solved_in_a_state_is_not_solved_again(tube, monkeypatc
     assert calls == [2]
 
 
-def test_a_load_state_that_needs_more_iterations_goes_on_from_where_it_stopped(tube, tube_loads, monkeypatch):
-    """A one-clutch state cut off by the solver's iteration limit one iteration short of
-    convergence goes on from where it stopped (a second round of as many), not from the
-    evaluator's two starts, and ends at the equilibrium an unlimited solve reaches."""
+def _cut_load_state(tube, tube_loads):
+    """The tube's state with the linked clutch alone ON, solved from its nearer start to
+    ``LOAD_TOL`` without a limit, and an evaluator whose solves stop one iteration short of
+    that: (short evaluator, design, keyed, known ON / OFF equilibria, the unlimited solve)."""
     import dataclasses
 
     from kgarment.constants import LOAD_TOL
-    from kgarment.design.loads import activation_equilibria, nearer_start
+    from kgarment.design.loads import nearer_start
 
     evaluator, design = tube
     known = {(s.motion, s.state): s.result for s in tube_loads.states}
@@ -205,6 +205,16 @@ def test_a_load_state_that_needs_more_iterations_goes_on_from_where_it_stopped(t
     n = full.convergence.iterations
     assert full.converged and n >= 3  # a state that takes a few iterations from its start
     short = Evaluator(dataclasses.replace(setup, solver=dataclasses.replace(setup.solver, max_iter=n - 1)))
+    return short, design, keyed, known, full
+
+
+def test_a_load_state_that_needs_more_iterations_goes_on_from_where_it_stopped(tube, tube_loads, monkeypatch):
+    """A one-clutch state cut off by the solver's iteration limit one iteration short of
+    convergence goes on from where it stopped (a second round of as many), not from the
+    evaluator's two starts, and ends at the equilibrium an unlimited solve reaches."""
+    from kgarment.design.loads import activation_equilibria
+
+    short, design, keyed, known, full = _cut_load_state(tube, tube_loads)
     monkeypatch.setattr(Evaluator, "equilibria", lambda *a, **k: pytest.fail("fell back to the two starts"))
     (r,) = activation_equilibria(short, design, keyed, known).values()
     assert r.converged
@@ -219,29 +229,18 @@ def test_a_load_state_still_sliding_after_going_on_is_switched_on_in_steps(tube,
     activation).  It ends at an equilibrium (checked independently of the solver) within 1% of
     the one an unlimited solve from the nearer start reaches: the state has two, 0.3% apart in
     energy, and the path through the steps reaches the higher one (at 1e-6 as at 1e-3)."""
-    import dataclasses
-
     import torch
 
     from kgarment.constants import LOAD_TOL
-    from kgarment.design.loads import activation_equilibria, nearer_start
+    from kgarment.design.loads import activation_equilibria
     from kgarment.sim.solve import prepare_state
 
-    evaluator, design = tube
-    known = {(s.motion, s.state): s.result for s in tube_loads.states}
-    keyed = evaluator.activation_states([1.0, 0.0], ["pull"], "only linked")
-    setup = evaluator.setup
-    start = nearer_start(setup, design, keyed[0][1], [known[("pull", "on")].x, known[("pull", "off")].x])
-    free = dataclasses.replace(setup.solver, tol=LOAD_TOL, rescue_shifts=0)
-    (full,) = setup.solve_now(design, [keyed[0][1]], [start], free)
-    n = full.convergence.iterations
-    assert full.converged and n >= 3
-    short = Evaluator(dataclasses.replace(setup, solver=dataclasses.replace(setup.solver, max_iter=n - 1)))
+    short, design, keyed, known, full = _cut_load_state(tube, tube_loads)
     monkeypatch.setattr(DesignSetup, "go_on", lambda self, design, states, stopped, options=None: list(stopped))
     monkeypatch.setattr(Evaluator, "equilibria", lambda *a, **k: pytest.fail("fell back to the two starts"))
     (r,) = activation_equilibria(short, design, keyed, known).values()
     assert r.converged and r.convergence.tolerance == LOAD_TOL
-    prob = prepare_state(setup.model, design, keyed[0][1], setup.solver)
+    prob = prepare_state(short.setup.model, design, keyed[0][1], short.setup.solver)
     _, grad, _ = prob.evaluate(torch.as_tensor(r.x), order=1)
     assert prob.residual(grad) <= LOAD_TOL
     assert r.total_energy == pytest.approx(full.total_energy, rel=1e-2)
