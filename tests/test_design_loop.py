@@ -144,7 +144,7 @@ def test_activation_continuation_reaches_the_on_equilibrium(anny_body):
 
     import torch
 
-    from kgarment.design.evaluate import CONTINUATION, activation_continuation
+    from kgarment.design.continuation import CONTINUATION, activation_continuation
     from kgarment.design.setup import setup_from_problem
     from kgarment.problem import GarmentSpec, Problem, build_clutches, build_garment
     from kgarment.sim.solve import prepare_state

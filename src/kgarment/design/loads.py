@@ -56,6 +56,7 @@ import numpy as np
 import torch
 
 from kgarment.constants import LOAD_TOL, LOADED_SHARE, MIN_GAIN
+from kgarment.design.continuation import activation_continuation
 from kgarment.io import save_figure
 from kgarment.sim import StateResult, clutch_tensions, prepare_state
 from kgarment.sim.slip import slides
@@ -176,7 +177,7 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     (:func:`nearer_start`), and is solved to :data:`LOAD_TOL`; a state that does not
     converge in the solver's iterations goes on from where it stopped for as many again, one
     still sliding then has its clutches switched on in steps from the motion's OFF
-    equilibrium (:func:`kgarment.design.evaluate.activation_continuation`, at ``LOAD_TOL``),
+    equilibrium (:func:`kgarment.design.continuation.activation_continuation`, at ``LOAD_TOL``),
     and one that does not converge even so goes through the evaluator's two starts.  These solves
     have no rescue (a second solve with larger shifts, ``SolverOptions.rescue_shifts``) and
     do not warn about the states they leave unconverged: the two starts follow anyway (and
@@ -208,8 +209,6 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
         out.update({keyed[i][0]: r for i, r in zip(slow, again) if r.converged})
     retry = [(key, st) for key, st in keyed if key not in out]
     if retry:  # still sliding: the clutches switched on in steps from the motion's OFF equilibrium
-        from kgarment.design.evaluate import activation_continuation  # evaluate imports this module
-
         stepped = activation_continuation(setup, design, [st for _, st in retry],
                                           [known[(key[0], "off")] for key, _ in retry], options=opts)
         out.update({key: r for (key, _), r in zip(retry, stepped) if r.converged})
