@@ -12,15 +12,16 @@ import logging
 import numpy as np
 
 from kgarment.design.setup import DesignSetup
-from kgarment.sim import SimState, StateResult
+from kgarment.sim import SimState, SolverOptions, StateResult
 
 log = logging.getLogger(__name__)
 CONTINUATION = (0.0, 0.25, 0.5, 0.75, 1.0)  # the activation's steps, as shares of the state's
 
 
 def activation_continuation(setup: DesignSetup, design: np.ndarray, states: list[SimState],
-                            offs: list[StateResult | None] | None = None, options=None) -> list[StateResult]:
-    """Solve ``states`` by switching their clutches on in steps: each state's equilibrium
+                            offs: list[StateResult | None] | None = None,
+                            options: SolverOptions | None = None) -> list[StateResult]:
+    """Solve ``states`` for ``design`` (m,) by switching their clutches on in steps: each state's equilibrium
     with the clutches off (from the skin-tight start), then activations ``CONTINUATION`` times
     the state's, each from the previous equilibrium.  Returns per state the last step's
     StateResult (named as the state; iterations and time of all steps added up).
