@@ -1,4 +1,5 @@
-"""Coarse-to-fine design (design.refine): the subdivision maps, and a tiny run end to end (its control screen at the coarse level)."""
+"""Coarse-to-fine design (design.refine): the subdivision maps, and a tiny run end to end
+(its control screen at the coarse level)."""
 
 from __future__ import annotations
 

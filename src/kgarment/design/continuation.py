@@ -23,8 +23,9 @@ def activation_continuation(setup: DesignSetup, design: np.ndarray, states: list
                             options: SolverOptions | None = None) -> list[StateResult]:
     """Solve ``states`` for ``design`` (m,) by switching their clutches on in steps: each
     state's equilibrium with the clutches off (from the skin-tight start), then activations
-    ``CONTINUATION`` times the state's, each from the previous equilibrium.  Returns per state the last step's
-    StateResult (named as the state; iterations and time of all steps added up).
+    ``CONTINUATION`` times the state's, each from the previous equilibrium.  Returns per
+    state the last step's StateResult (named as the state; iterations and time of all steps
+    added up).
 
     The states take each step together, one batch of solves per step (the workers share
     them).  ``offs``: per state its motion's clutches-off equilibrium from the skin-tight start
