@@ -33,6 +33,7 @@ skin-tight start at 0.444 J (rho ON 0.889).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -40,6 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kgarment.design.continuation import activation_continuation
+from kgarment.design.levels import prolong, put_on, restrict, states_down
 from kgarment.design.loads import LoadReport, clutch_loads
 from kgarment.design.metrics import Stored, relative_energy_density
 from kgarment.design.setup import DesignSetup, StateKey, setup_from_problem
@@ -177,12 +179,16 @@ def pick_equilibrium(a: StateResult, b: StateResult) -> Equilibrium:
 def solve_two_starts(setup: DesignSetup, design: np.ndarray, states: list[SimState], starts: list,
                      options=None) -> tuple[list[StateResult], list[StateResult]]:
     """``states`` solved for ``design`` (m,) from ``starts`` (per state (N, 3) positions or
-    None) and from the skin-tight garment, in one batch (the workers share the 2n solves
-    instead of waiting twice for the slowest); returns (from ``starts``, from skin-tight),
-    both under the states' own names.  ``options``: the setup's solver options unless given."""
+    None) and from the garment as put on (the skin-tight garment, or on a subdivided garment
+    its equilibrium one level down, :func:`kgarment.design.levels.put_on`), in one batch
+    (the workers share the 2n solves instead of waiting twice for the slowest); returns
+    (from ``starts``, as put on), both under the states' own names.  ``options``: the setup's
+    solver options unless given."""
     n = len(states)
-    skin = [dataclasses.replace(s, name=f"{s.name}@skin-tight") for s in states]
-    both = setup.solve(design, list(states) + skin, warm_start=list(starts) + [None] * n, options=options)
+    worn = put_on(setup, design, list(states))
+    skin = [dataclasses.replace(s, name=f"{s.name}@{'skin-tight' if w is None else 'put-on'}")
+            for s, w in zip(states, worn)]
+    both = setup.solve(design, list(states) + skin, warm_start=list(starts) + worn, options=options)
     return both[:n], [dataclasses.replace(r, name=s.name) for r, s in zip(both[n:], states)]
 
 
@@ -249,6 +255,45 @@ class Evaluator:
         return [((m, label), SimState.create(self.setup.motions[m], g, name=f"{m}[{label}]"))
                 for m in self.motion_names(motions)]
 
+    @functools.cached_property
+    def coarser(self) -> Evaluator | None:
+        """The evaluator of the same problem one subdivision level down (the setup's
+        ``coarser``; the same store), or None: its equilibria start this one's (nested
+        iteration, :mod:`kgarment.design.levels`)."""
+        c = self.setup.coarser() if self.setup.coarser is not None else None
+        return None if c is None else Evaluator(c.setup, self.setup.store)
+
+    def down(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]],
+             tag: str = "") -> tuple[list[int], np.ndarray, list[tuple[StateKey, SimState]]]:
+        """``keyed`` states one level down: (the indices of those the coarser evaluator has,
+        ``design`` (m,) restricted to its garment, those states keyed there the same way).
+        Only with a :attr:`coarser` evaluator."""
+        idx, down = states_down(self.setup.coarser(), [s for _, s in keyed], tag)
+        return idx, restrict(design, self.coarser.n_faces), [(keyed[i][0], s) for i, s in zip(idx, down)]
+
+    def up(self, x: np.ndarray) -> np.ndarray:
+        """An equilibrium (N_coarse, 3) of the :attr:`coarser` evaluator's garment as a start
+        (N, 3) here."""
+        return prolong(self.setup, self.setup.coarser(), x)
+
+    def from_full(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]]) -> list[np.ndarray]:
+        """Per state the start of ``design``'s solve along a design run's path, which begins at
+        the fully reinforced garment: its equilibrium (:meth:`reference`); on a subdivided
+        garment the design's equilibrium one level down reached the same way, prolongated
+        (nested iteration, :mod:`kgarment.design.levels`; a state the level below lacks: the
+        reference)."""
+        starts: list = [None] * len(keyed)
+        if self.coarser is not None:
+            idx, d, low = self.down(design, keyed, "@from-full")
+            if idx:
+                solved = self.coarser.setup.solve(d, [s for _, s in low], warm_start=self.coarser.from_full(d, low))
+                for i, r in zip(idx, solved):
+                    starts[i] = self.up(r.x)
+        rest = [i for i, x in enumerate(starts) if x is None]
+        for i, r in zip(rest, self.reference([keyed[i] for i in rest]) if rest else []):
+            starts[i] = r.x
+        return starts
+
     def reference(self, keyed: list[tuple[StateKey, SimState]]) -> list[StateResult]:
         """The fully reinforced garment's equilibria in ``keyed`` states (solved once each):
         from the skin-tight garment, and a clutched state also from its motion's OFF
@@ -264,7 +309,7 @@ class Evaluator:
             known = set(self._reference) | {k for k, _ in todo}
             offs = {(k[0], "off") for k, s in todo if s.clutched} - known
             todo += [(k, s) for k, s in self.setup.states() if k in offs]
-            done = self.setup.solve(full, [s for _, s in todo])
+            done = self.setup.solve(full, [s for _, s in todo], warm_start=put_on(self.setup, full, [s for _, s in todo]))
             self._reference.update({k: r for (k, _), r in zip(todo, done)})
             off = {k[0]: self._reference[k] for k in self._reference if k[1] == "off" and self._reference[k].converged}
             again = [(k, s) for k, s in todo if s.clutched and k[0] in off]
@@ -304,7 +349,7 @@ class Evaluator:
             return [Equilibrium(r) for r in self.reference(keyed)]
         states = [s for _, s in keyed]
         setup = self.setup
-        starts = [r.x for r in self.reference(keyed)] if starts is None else list(starts)
+        starts = self.from_full(design, keyed) if starts is None else list(starts)
         from_starts, cold = solve_two_starts(setup, design, states, starts)
         out = [pick_equilibrium(a, b) for a, b in zip(cold, from_starts)]
         slow = [i for i, e in enumerate(out) if not e.result.converged]

@@ -200,7 +200,7 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     setup = evaluator.setup
     opts = dataclasses.replace(setup.solver, tol=max(setup.solver.tol, LOAD_TOL), rescue_shifts=0, on_fail="info")
     starts = [nearer_start(setup, design, st, [known[(key[0], "on")].x, known[(key[0], "off")].x])
-              for key, st in keyed]
+              if x is None else x for (key, st), x in zip(keyed, coarse_starts(evaluator, design, keyed))]
     solved = setup.solve(design, [st for _, st in keyed], warm_start=starts, options=opts)
     out = {key: r for (key, _), r in zip(keyed, solved) if r.converged}
     slow = [i for i, (key, _) in enumerate(keyed) if key not in out]
@@ -217,6 +217,27 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
         log.info("%d state(s) go on from the evaluator's two starts: %s", len(retry),
                  ", ".join(st.name for _, st in retry))
         out.update(zip([key for key, _ in retry], evaluator.equilibria(design, retry)))
+    return out
+
+
+def coarse_starts(evaluator, design: np.ndarray, keyed) -> list[np.ndarray | None]:
+    """Per ``keyed`` state (activations of :func:`activation_equilibria`) its equilibrium one
+    subdivision level down, prolongated (N, 3); None where there is no coarser level (its
+    evaluator, :attr:`kgarment.design.Evaluator.coarser`).  There ``design`` (m,) is
+    restricted and the state solved as here -- from that level's all-ON or all-OFF
+    equilibrium, itself from the evaluator's two starts -- so the garment does its slide to
+    the new activation where a Newton step moves it furthest (nested iteration,
+    :mod:`kgarment.design.levels`)."""
+    out: list[np.ndarray | None] = [None] * len(keyed)
+    low = evaluator.coarser
+    if low is None:
+        return out
+    idx, d, down = evaluator.down(design, keyed)
+    if idx:
+        _, known = on_off_equilibria(low, d, list(dict.fromkeys(key[0] for key, _ in down)))
+        solved = activation_equilibria(low, d, down, known)
+        for i, (key, _) in zip(idx, down):
+            out[i] = evaluator.up(solved[key].x)
     return out
 
 

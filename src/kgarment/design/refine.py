@@ -28,14 +28,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-import scipy.sparse as sp
 
 from kgarment.design.beso import design_values
+from kgarment.design.levels import level_problem, parent_faces, vertex_map
 from kgarment.design.loop import FULL, LoopState, iterate
 from kgarment.design.run import load_checkpoint, run_status, save_checkpoint
 from kgarment.design.setup import DesignSetup
 from kgarment.errors import Cancelled
-from kgarment.garment.topology import midpoint_subdivide
 from kgarment.problem import Problem
 
 log = logging.getLogger(__name__)
@@ -45,32 +44,6 @@ def coarse_levels(problem: Problem) -> tuple[int, ...]:
     """The problem's coarse levels below its garment's level (others are ignored, so that
     ``--subdivision 0`` on a coarse-to-fine problem is a plain design)."""
     return tuple(level for level in problem.design.levels if level < problem.garment.subdivision)
-
-
-def level_problem(problem: Problem, level: int) -> Problem:
-    """``problem`` at subdivision ``level``, designed there plainly (no further levels)."""
-    return dataclasses.replace(problem, garment=dataclasses.replace(problem.garment, subdivision=level),
-                               design=dataclasses.replace(problem.design, levels=()))
-
-
-def parent_faces(n_fine: int, n_coarse: int) -> np.ndarray:
-    """(n_fine,) the coarse face each fine face lies in (children come in blocks of
-    ``n_coarse``, :func:`kgarment.garment.topology.midpoint_subdivide`)."""
-    if n_fine % n_coarse or (n_fine // n_coarse) & (n_fine // n_coarse - 1):
-        raise ValueError(f"{n_fine} faces are not a midpoint subdivision of {n_coarse}")
-    return np.arange(n_fine) % n_coarse
-
-
-def vertex_map(coarse_faces: np.ndarray, n_coarse: int, n_fine_faces: int) -> sp.csr_matrix:
-    """(n_fine, n_coarse) sparse map of vertex positions from a coarse garment (faces (m, 3),
-    ``n_coarse`` vertices) to its subdivision with ``n_fine_faces`` faces."""
-    faces, S = np.asarray(coarse_faces), sp.identity(n_coarse, format="csr")
-    while len(faces) < n_fine_faces:
-        faces, step = midpoint_subdivide(faces, S.shape[0])
-        S = (step @ S).tocsr()
-    if len(faces) != n_fine_faces:
-        raise ValueError(f"{n_fine_faces} faces are not a midpoint subdivision of {len(coarse_faces)}")
-    return S
 
 
 def transfer(coarse_setup: DesignSetup, coarse: LoopState, fine_setup: DesignSetup, fine: LoopState) -> LoopState:

@@ -8,13 +8,17 @@ from parts); the loop, the evaluator and the final report only read it.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
 
+from kgarment import constants
 from kgarment.design.beso import one_ring_filter, radius_filter
+from kgarment.design.levels import Coarser, level_problem, vertex_map
 from kgarment.design.metrics import clutch_end_support, islands
 from kgarment.design.objective import states_needed
 from kgarment.design.store import shared_store
@@ -22,7 +26,14 @@ from kgarment.design.wearers import ClutchEnds, Wearer, clutch_ends, wearer_moti
 from kgarment.errors import KgarmentError
 from kgarment.garment import Garment
 from kgarment.garment.topology import boundary_loops, face_adjacency, triangle_areas
-from kgarment.problem import BesoParams, Problem, build_model, solver_options
+from kgarment.problem import (
+    BesoParams,
+    Problem,
+    build_clutches,
+    build_garment,
+    build_model,
+    solver_options,
+)
 from kgarment.problem.spec import balance_weight
 from kgarment.sim import Motion, SimModel, SimState, SolverOptions, garment_motions, solve_states
 
@@ -86,6 +97,7 @@ class DesignSetup:
     path_start: int = 0
     path_frames: dict[str, tuple[Motion, ...]] = field(default_factory=dict, repr=False)
     store: object = field(default=None, repr=False, compare=False)  # EquilibriumStore (design.store) or None
+    coarser: Callable[[], Coarser | None] | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
@@ -329,7 +341,7 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
             if t < 1.0:  # the last frame is the target pose, the state's own motion
                 path_frames.setdefault(m, []).append(frames[label])
         path_frames = {m: tuple(v) for m, v in path_frames.items()}
-    return DesignSetup.build(model, motions, d.objective, d.beso, solver,
+    setup = DesignSetup.build(model, motions, d.objective, d.beso, solver,
                              evolution_solver=evolution,
                              protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin),
                              skin_start=problem.solver.skin_start, activation=activation, wearers=wearers,
@@ -338,6 +350,28 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
                              guard=d.guard,
                              combine=d.combine if d.objective == "active" else "sum",
                              path_start=path_start, path_frames=path_frames)
+    if purpose == "evaluate" and problem.garment.subdivision > 0 and not wearers and \
+            model.n_garment > constants.NESTED_VERTICES:
+        setup = dataclasses.replace(setup, coarser=functools.cache(
+            functools.partial(_coarser, problem, body, setup.model, purpose, device, objective)))
+    return setup
+
+
+def _coarser(problem: Problem, body, model: SimModel, purpose: str, device: str,
+             objective: str | None) -> Coarser | None:
+    """``problem``'s setup one subdivision level below its garment's (built on ``body``; its
+    own coarser level with it), and the map up to ``model``'s garment; None where the coarse
+    garment cannot carry the clutches (logged)."""
+    level = problem.garment.subdivision - 1
+    low = level_problem(problem, level)
+    garment = build_garment(low, body)
+    try:
+        strips = build_clutches(low, body, garment)
+    except KgarmentError as exc:
+        log.info("no coarser start at subdivision %d: %s", level, exc)
+        return None
+    setup = setup_from_problem(low, body, garment, strips, purpose, device, objective)
+    return Coarser(level, setup, vertex_map(garment.faces, garment.n_vertices, model.n_faces))
 
 
 def activation_vectors(problem: Problem, names: list[str]) -> dict[str, np.ndarray]:
