@@ -174,7 +174,9 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     activations other than all ON / all OFF, from :meth:`Evaluator.activation_states`).
     Each starts from its motion's all-ON or all-OFF equilibrium (``known[(motion, "on" |
     "off")]``), whichever has the lower energy under the state's activation
-    (:func:`nearer_start`), and is solved to :data:`LOAD_TOL`; a state that does not
+    (:func:`nearer_start`) -- on a garment with a coarser level (:attr:`Evaluator.coarser`)
+    from its own equilibrium there instead (:func:`coarse_starts`) -- and is solved to
+    :data:`LOAD_TOL`; a state that does not
     converge in the solver's iterations goes on from where it stopped for as many again, one
     still sliding then has its clutches switched on in steps from the motion's OFF
     equilibrium (:func:`kgarment.design.continuation.activation_continuation`, at ``LOAD_TOL``),
@@ -196,7 +198,11 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     22.6 minutes, converging only through their own continuation at the end.  Switched on in
     steps at ``LOAD_TOL`` first, two of them converged in 5.5 minutes (5.673 and 5.760 J,
     against 5.719 and 5.780 J before) and the third stopped at residual 0.14 at 12.610 J
-    (12.641 J converged before), so it still takes the two starts."""
+    (12.641 J converged before), so it still takes the two starts.  Started from their
+    equilibria one level down (since 2026-11-29) the 18 took 11.1 minutes of worker time
+    (2.1 more at the coarser levels), two of them (arms raise with the upper back clutch
+    alone, bend forward without the right lower one) went on from where they stopped, and
+    none needed the continuation or the two starts."""
     setup = evaluator.setup
     opts = dataclasses.replace(setup.solver, tol=max(setup.solver.tol, LOAD_TOL), rescue_shifts=0, on_fail="info")
     starts = [nearer_start(setup, design, st, [known[(key[0], "on")].x, known[(key[0], "off")].x])
