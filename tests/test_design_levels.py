@@ -114,3 +114,24 @@ def test_every_start_of_an_evaluation_comes_from_one_level_down(anny_body, neste
                                warm_start=[x])
         assert r.converged
         assert np.abs(r.x[:n_low] - start[:n_low]).max() < 0.25 * low.setup.model.mean_edge
+
+
+def test_a_design_runs_iteration_0_starts_one_level_down(anny_body, nested_sleeve):
+    """The fully reinforced garment of a design run's iteration 0 is solved from its
+    equilibria one level down (the design setup's own coarser level), as the evaluator's
+    are; later iterations start from the iteration before."""
+    from kgarment.design.loop import initial_state
+    from kgarment.design.loop import solve as loop_solve
+    from kgarment.design.setup import setup_from_problem
+    from kgarment.problem import build_clutches, build_garment
+
+    p = _sleeve(1)
+    garment = build_garment(p, anny_body)
+    setup = setup_from_problem(p, anny_body, garment, build_clutches(p, anny_body, garment), "design")
+    assert setup.coarser().setup.model.n_faces * 4 == setup.model.n_faces
+    st = initial_state(setup)
+    solved = loop_solve(setup, st)
+    states = [s for _, s in setup.states()]
+    again = setup.solve(st.design, states, warm_start=put_on(setup, st.design, states), options=setup.options(0))
+    for a, b in zip(solved.results, again):
+        assert a.converged and np.array_equal(a.x, b.x)

@@ -29,9 +29,10 @@ EVALUATION_TOL = 1e-4  # evaluations (evaluate, simulate, studio, reproduce, fab
 ADAPTIVE_VERTICES = 4000  # evaluations solve garments of more vertices with the adaptive Hessian, not the
                           # shifted exact one (kgarment.sim.newton, "auto"; the shirt: 1,702 vertices at
                           # subdivision 0, 6,635 at 1, 26,188 at 2; the arm sleeve 302, 1,167, 4,586)
-NESTED_VERTICES = 4000  # evaluations start garments of more vertices (subdivided ones) from their equilibria one
-                        # level down (kgarment.design.levels: nested iteration); smaller garments, where
-                        # the slide from the skin-tight start is cheap, from their own starts
+NESTED_VERTICES = 4000  # evaluations and a design run's iteration 0 start garments of more vertices (subdivided
+                        # ones) from their equilibria one level down (kgarment.design.levels: nested
+                        # iteration); smaller garments, where the slide from the skin-tight start is cheap,
+                        # from their own starts
 MAX_NEWTON = 200       # [solver] max_iter: Newton iterations per state
 MAX_WORKERS = 8        # [solver] workers = 0 means one process per core, at most this many
 

@@ -20,8 +20,11 @@ start of full multigrid) solves the state on the garment one level down from its
 prolongated: the slide is done where it is cheap, the fine solve adds the detail.  The
 coarse level's design is the fine design restricted (:func:`restrict`), its states the same
 motions and activations on the coarse garment (the same body and clutch specs, each clutch
-walked out on the coarse garment), solved with the coarse level's own evaluation options
-and store, so a later evaluation of the run reads them back.
+walked out on the coarse garment), solved with the coarse level's own options and store,
+so a later evaluation of the run reads them back.  A design run's iteration 0 (the fully
+reinforced garment, the objective's reference) starts the same way: in a coarse-to-fine run
+the levels below have solved exactly those states in their own iteration 0, and the
+machine's store of fully reinforced garments hands them over.
 
 Measured (2026-11-29, the three-motion shirt's subdivision-2 design of
 ``benchmarks/design.py --subdivisions 2`` (coarse-to-fine), one process, 1e-4, each state
@@ -31,7 +34,10 @@ final evaluation): arms raise ON 55 s in all (142 iterations at level 2) against
 144 s (372), 4.743 J against 4.788 J; arms forward OFF 52 s (135, converged) against 165 s
 (400, not converged), 0.5385 J against 0.5393 J.  The nested start ended lower in all
 three: it is as much the garment as put on as the skin-tight one, and it lets the cloth
-settle before the fine detail holds it.
+settle before the fine detail holds it.  The same run's iteration 0 at level 2 (the fully
+reinforced garment at 1e-3, 2 workers): 10 s for the levels below and 47 s at level 2 (263
+Newton iterations) against 194 s from the skin-tight garment (1,177), all six states 0.05-0.9%
+lower in total energy.
 """
 
 from __future__ import annotations

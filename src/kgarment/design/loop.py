@@ -26,7 +26,10 @@ sensitivities (unless the previous iteration failed too: the same update would r
 same design and failure), and its objective does not count towards convergence.
 
 Iteration 0 is the fully reinforced garment, so its energies are the references of the
-relative energy density rho (method.md section 7) and of the objective.
+relative energy density rho (method.md section 7) and of the objective.  It starts from the
+garment as put on: the skin-tight garment, or on a subdivided garment of more than
+``NESTED_VERTICES`` vertices its equilibria one subdivision level down
+(:func:`kgarment.design.levels.put_on`).
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ from kgarment.design.beso import converged, design_values, next_target, settled_
 from kgarment.design.connect import connect_design
 from kgarment.design.evaluate import MULTISTABLE, pick_equilibrium
 from kgarment.design.guard import REJECTED, TERM, boosted, guard_step, last_accepted, terms_of
+from kgarment.design.levels import put_on
 from kgarment.design.metrics import Stored, relative_energy_density
 from kgarment.design.objective import (
     combine_sensitivities,
@@ -149,6 +153,8 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     states = [s for _, s in keyed]
     opts = setup.options(st.iteration)
     warm = [st.warm.get(s.name) for s in states]
+    if not st.warm:  # iteration 0: the garment as put on (on a large subdivided garment solved one level down first)
+        warm = put_on(setup, st.design, states)
     if setup.skin_start and st.warm:
         n = len(states)
         full = [st.warm.get(s.name + FULL) for s in states]  # the evaluator's second start (FULL)

@@ -350,7 +350,7 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
                              guard=d.guard,
                              combine=d.combine if d.objective == "active" else "sum",
                              path_start=path_start, path_frames=path_frames)
-    if purpose == "evaluate" and problem.garment.subdivision > 0 and not wearers and \
+    if problem.garment.subdivision > 0 and not wearers and \
             model.n_garment > constants.NESTED_VERTICES:
         setup = dataclasses.replace(setup, coarser=functools.cache(
             functools.partial(_coarser, problem, body, setup.model, purpose, device, objective)))
