@@ -18,10 +18,11 @@ put on is the state's equilibrium there from its own put-on start (:func:`put_on
 start along the run's path the design's equilibrium there from that level's start along
 the path (:meth:`Evaluator.from_full`); the load states start from theirs
 (:func:`kgarment.design.loads.coarse_starts`).  Measured on the three-motion shirt's design
-at subdivision 2 (2026-11-29, coarse-to-fine, 2 workers): the final evaluation took 13.9
-minutes against 50.6, rho ON 3.156 / 2.346 / 1.675 against 3.164 / 2.352 / 1.682, every
-clutch share within 0.01 and tension within 3 N; at subdivision 1 111 s against about 200 s,
-rho within 0.3%.  A membrane without bending on a frictionless body can have
+at subdivision 2 (2026-11-29, coarse-to-fine, 2 workers): the run's final evaluation took
+18.1 minutes with its renders, everything solved cold, against 50.6 (``kgarment evaluate``
+13.9 minutes with the fully reinforced garment's solves in the machine's store), rho ON
+3.156 / 2.346 / 1.675 against 3.164 / 2.352 / 1.682, every clutch share within 0.01 and
+tension within 3 N; at subdivision 1 111 s against about 200 s, rho within 0.3%.  A membrane without bending on a frictionless body can have
 several equilibria (the garment settles in different places), and the two starts can
 end in different ones: the converged solution of lower total energy, the more stable one,
 is kept, and the other is reported when the two differ by more than ``MULTISTABLE``.  A

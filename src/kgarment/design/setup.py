@@ -342,14 +342,14 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
                 path_frames.setdefault(m, []).append(frames[label])
         path_frames = {m: tuple(v) for m, v in path_frames.items()}
     setup = DesignSetup.build(model, motions, d.objective, d.beso, solver,
-                             evolution_solver=evolution,
-                             protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin),
-                             skin_start=problem.solver.skin_start, activation=activation, wearers=wearers,
-                             lockout=d.lockout if d.objective == "active" else 0.0,
-                             balance={m: d.balance_of(m) for m in motions} if d.objective == "active" else 0.0,
-                             guard=d.guard,
-                             combine=d.combine if d.objective == "active" else "sum",
-                             path_start=path_start, path_frames=path_frames)
+                              evolution_solver=evolution,
+                              protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin),
+                              skin_start=problem.solver.skin_start, activation=activation, wearers=wearers,
+                              lockout=d.lockout if d.objective == "active" else 0.0,
+                              balance={m: d.balance_of(m) for m in motions} if d.objective == "active" else 0.0,
+                              guard=d.guard,
+                              combine=d.combine if d.objective == "active" else "sum",
+                              path_start=path_start, path_frames=path_frames)
     if problem.garment.subdivision > 0 and not wearers and \
             model.n_garment > constants.NESTED_VERTICES:
         setup = dataclasses.replace(setup, coarser=functools.cache(
