@@ -321,7 +321,8 @@ class Evaluator:
             known = set(self._reference) | {k for k, _ in todo}
             offs = {(k[0], "off") for k, s in todo if s.clutched} - known
             todo += [(k, s) for k, s in self.setup.states() if k in offs]
-            done = self.setup.solve(full, [s for _, s in todo], warm_start=put_on(self.setup, full, [s for _, s in todo]))
+            states = [s for _, s in todo]
+            done = self.setup.solve(full, states, warm_start=put_on(self.setup, full, states))
             self._reference.update({k: r for (k, _), r in zip(todo, done)})
             off = {k[0]: self._reference[k] for k in self._reference if k[1] == "off" and self._reference[k].converged}
             again = [(k, s) for k, s in todo if s.clutched and k[0] in off]

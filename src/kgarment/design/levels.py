@@ -43,7 +43,6 @@ lower in total energy.
 from __future__ import annotations
 
 import dataclasses
-import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,8 +52,6 @@ from kgarment.design.beso import design_values
 from kgarment.garment.topology import midpoint_subdivide
 from kgarment.problem import Problem
 from kgarment.sim import SimState
-
-log = logging.getLogger(__name__)
 
 
 def level_problem(problem: Problem, level: int) -> Problem:
