@@ -394,39 +394,6 @@ def test_an_experiment_started_afresh_does_not_inherit_the_old_entrys_time(tmp_p
     assert continued("arm_flexion", old, tmp_path) is old["arm_flexion"]
 
 
-def _plan(rows):
-    """A clutch-set table as kgarment plan writes it: rows (motion, clutches, resistance J)."""
-    return {"clutches": ["a", "b"], "keep": 0.9, "motions": {},
-            "sets": [{"motion": m, "clutches": c, "resistance_J": r, "fraction": None} for m, c, r in rows]}
-
-
-def _exp(name, plan, rho, activation=None):
-    return {"name": name, "group": "sleeve", "multi": True, "motions": ["flex", "ext"], "plan": plan,
-            "activation": activation or {}, "evaluations": {"ours": {"rho": {m: {"on": v, "off": 0.1}
-                                                                           for m, v in rho.items()}}}}
-
-
-def test_the_selective_target_from_the_clutch_set_tables():
-    """Own set resistance against the other set's and the all-ON design's (numbers chosen:
-    flexion 4 J own, 1 J from extension's set (25%), all-ON design 4.5 J (89%))."""
-    from kgarment.reproduce.targets import selective_targets
-
-    base = _exp("sleeve_two_motions", _plan([("flex", ["a", "b"], 4.5), ("ext", ["a", "b"], 10.0)]),
-                {"flex": 1.2, "ext": 1.5})
-    sel = _exp("sleeve_selective", _plan([("flex", ["a"], 4.0), ("flex", ["b"], 1.0), ("ext", ["b"], 9.0),
-                                          ("ext", ["a"], 0.5)]), {"flex": 1.1, "ext": 1.3},
-               {"flex": {"a": 1.0}, "ext": {"b": 1.0}})
-    (t,) = selective_targets({"sleeve_two_motions": base, "sleeve_selective": sel})
-    assert t.ok and "flex: rho ON 1.10, other sets 25% of its own, 89% of the all-ON design" in t.detail
-    sel["plan"]["sets"][1]["resistance_J"] = 2.5  # extension's clutch now stores 62% of flexion's own: a lock
-    (t,) = selective_targets({"sleeve_two_motions": base, "sleeve_selective": sel})
-    assert not t.ok and "other sets 62% of its own" in t.detail
-    sel["clutch_model"] = "locked"  # a band locks where a cable is slack: the line says which was simulated
-    (t,) = selective_targets({"sleeve_two_motions": base, "sleeve_selective": sel})
-    assert t.detail.startswith("sleeve_selective (locked clutches): ")
-    assert selective_targets({"sleeve_two_motions": base}) == []  # no activation sets, no target
-
-
 def test_the_peak_force_target_compares_the_largest_tension_over_the_motion():
     from kgarment.reproduce.targets import force_targets
 
@@ -479,20 +446,6 @@ def test_the_reproduction_keeps_the_papers_clutch_strips():
     assert not paper.clutch_spec().hardware.buckle and problem_to_dict(paper).get("clutches") is None
     assert experiment_problem(exp, res, overrides={"buckle": True}).clutch_spec().hardware.buckle
     assert not experiment_problem(exp, res, overrides={"buckle": None, "preset": None}).clutch_spec().hardware.buckle
-
-
-def test_the_reproduction_keeps_the_papers_clutches():
-    """The selective sleeve's example designs with cable clutches; the reproduction makes
-    it with the paper's locked clutches unless told a clutch model or holding force."""
-    from kgarment.problem import example_path, load_problem
-    from kgarment.reproduce.catalog import BY_NAME, RESOLUTIONS
-    from kgarment.reproduce.experiments import experiment_problem
-
-    exp, res = BY_NAME["sleeve_selective"], RESOLUTIONS["tiny"]
-    assert load_problem(example_path(exp.name)).clutch_spec().hardware.model == "cable"
-    assert experiment_problem(exp, res).clutch_spec().hardware.model == "locked"
-    assert experiment_problem(exp, res, overrides={"clutch_model": "cable"}).clutch_spec().hardware.model == "cable"
-    assert experiment_problem(exp, res, overrides={"holding_force": 50.0}).clutch_spec().hardware.model == "cable"
 
 
 def test_the_report_names_an_experiments_early_poses():

@@ -50,13 +50,16 @@ RESOLUTIONS = {
 class Experiment:
     """name : also the example file's stem;  group : experiments sharing garment and
     clutch placement ("sleeve", "shirt", "long_sleeve");  multi : optimised for several
-    motions;  paper : motion -> (rho ON, rho OFF or None) as published."""
+    motions;  paper : motion -> (rho ON, rho OFF or None) as published;  papers_model :
+    made with the paper's clutch model (False: an experiment of ours, not the paper's, made
+    with its example file's clutches; :func:`kgarment.reproduce.experiments.experiment_problem`)."""
 
     name: str
     group: str
     multi: bool
     paper: dict
     title: str
+    papers_model: bool = True
 
 
 EXPERIMENTS = (
@@ -71,7 +74,8 @@ EXPERIMENTS = (
                "Two-motion sleeve (flexion + extension)"),
     Experiment("sleeve_selective", "sleeve", True,
                {"arm_flexion.right": (0.88, None), "arm_extension.right": (1.27, None)},
-               "Selective sleeve (flexion switches the outer clutch, extension the inner; paper: its two-motion sleeve)"),
+               "Selective sleeve (flexion switches the outer clutch, extension the inner; paper: its two-motion sleeve)",
+               papers_model=False),
     Experiment("shirt_three_motions", "shirt", True,
                {"arms_forward": (1.77, None), "arms_raise": (1.08, None), "bend_forward": (1.60, None)},
                "Three-motion shirt"),

@@ -11,9 +11,10 @@ for the quick ones, the BESO step sizes:
   120 iterations, 10 random seeds;
 * ``default``: the example files as they are (subdivision 1, the paper's 1.5% steps).
 
-Design runs live in ``OUT/runs/<experiment>`` (ours) and ``OUT/runs/<experiment>-compliance``
-(the compliance baseline): ordinary run folders, resumed where they stopped, reused when
-finished.
+Design runs live in ``OUT/runs/<experiment>`` (ours), ``OUT/runs/<experiment>-compliance``
+(the compliance baseline) and, for an experiment with activation sets, ``OUT/runs/<experiment>-all-on``
+(the same problem with every clutch ON: :func:`all_on_problem`): ordinary run folders, resumed
+where they stopped, reused when finished.
 """
 
 from __future__ import annotations
@@ -45,7 +46,8 @@ from kgarment.reproduce.catalog import (
 )
 
 __all__ = ["BY_NAME", "DATA", "EXPERIMENTS", "MULTI_OF_GROUP", "PAPER_SHIRT_MATRIX", "RESOLUTIONS", "Experiment",
-           "Resolution", "RunOutcome", "best_iteration", "design_run", "experiment_problem", "select"]
+           "Resolution", "RunOutcome", "all_on_problem", "best_iteration", "design_run", "experiment_problem",
+           "select"]
 log = logging.getLogger(__name__)
 
 
@@ -58,17 +60,21 @@ def experiment_problem(exp: Experiment, res: Resolution, objective: str = "activ
     """The example problem of ``exp`` at resolution ``res`` (and with ``objective``, and the
     problem ``overrides`` of :func:`kgarment.problem.override` -- the material ``preset``,
     the ``clutch_model``, the ``holding_force``, ``buckle`` -- where given; the balance term
-    belongs to the active objective and is dropped for the others).  The clutch strips are
-    the paper's (:data:`PAPER_BUCKLE`) unless the overrides say ``buckle``: the example files'
-    buckling strips are for designing garments, the reproduction reproduces the paper's
-    model (README, "Clutches that buckle"); so are its clutches (:data:`PAPER_CLUTCH_MODEL`)
-    where an example file names another model (the selective sleeve's cables) and the
-    overrides give no clutch model or holding force."""
+    belongs to the active objective and is dropped for the others).  The clutch strips of
+    the paper's experiments are the paper's (:data:`PAPER_BUCKLE`) unless the overrides say
+    ``buckle``: the example files' buckling strips are for designing garments, the
+    reproduction reproduces the paper's model (README, "Clutches that buckle"); so are their
+    clutches (:data:`PAPER_CLUTCH_MODEL`) where an example file names another model and the
+    overrides give no clutch model or holding force.  An experiment of ours
+    (``exp.papers_model`` False: the selective sleeve) keeps its example's clutches and
+    strips unless the overrides name them: the paper has no such experiment to compare
+    with, and its target (no motion locked by another motion's clutch) is about what a real
+    clutch does, which a band that resists being shortened does not."""
     overrides = dict(overrides or {})
-    if overrides.get("buckle") is None:
-        overrides["buckle"] = PAPER_BUCKLE
     source = load_problem(example_path(exp.name))
-    if (overrides.get("clutch_model") is None and overrides.get("holding_force") is None
+    if exp.papers_model and overrides.get("buckle") is None:
+        overrides["buckle"] = PAPER_BUCKLE
+    if (exp.papers_model and overrides.get("clutch_model") is None and overrides.get("holding_force") is None
             and source.clutch_spec().hardware.model != PAPER_CLUTCH_MODEL):
         overrides["clutch_model"] = PAPER_CLUTCH_MODEL
     p = override(source, **overrides)
@@ -86,6 +92,13 @@ def experiment_problem(exp: Experiment, res: Resolution, objective: str = "activ
     balance = d.balance if objective == "active" else 0.0
     return dataclasses.replace(p, garment=g, design=dataclasses.replace(d, objective=objective, beso=beso,
                                                                         balance=balance))
+
+
+def all_on_problem(problem: Problem) -> Problem:
+    """``problem`` with every clutch ON in every motion: its ``[motions.activation]`` sets
+    and their ``lockout`` dropped (the design a selective one is compared with, made with
+    the same clutches)."""
+    return dataclasses.replace(problem, activation=(), design=dataclasses.replace(problem.design, lockout=0.0))
 
 
 @dataclass

@@ -40,6 +40,7 @@ from kgarment.reproduce.experiments import (
     MULTI_OF_GROUP,
     RESOLUTIONS,
     Experiment,
+    all_on_problem,
     design_run,
     experiment_problem,
     select,
@@ -82,6 +83,9 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     ours = design_run(problem, out / "runs" / exp.name, device, progress)
     comp = design_run(experiment_problem(exp, res, "compliance", overrides), out / "runs" / f"{exp.name}-compliance",
                       device, progress)
+    # activation sets: the same problem designed with every clutch ON, the selective target's comparison
+    all_on = design_run(all_on_problem(problem), out / "runs" / f"{exp.name}-all-on", device,
+                        progress) if problem.activation else None
     phases: dict[str, float] = {}  # wall seconds per phase in this session (reused work: ~0)
 
     def lap(phase: str) -> None:  # the time since the last phase ended is this one's
@@ -97,6 +101,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         "compliance": comp.design,
         "manual": _manual(ev, budget),
         "full": np.ones(g.n_faces),
+        **({"all_on": all_on.design} if all_on else {}),
     }
     entry = {"name": exp.name, "title": exp.title, "group": exp.group, "multi": exp.multi,
              "preset": problem.materials.preset, "clutch_model": problem.clutch_spec().hardware.model,
@@ -107,8 +112,12 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
              "activation": {m: dict(v) for m, v in problem.activation}, "lockout": problem.design.lockout,
              "balance": problem.design.flat().get("balance", 0.0), "early": dict(problem.design.early),
              "evaluations": {}, "images": {}}
+    if all_on:
+        entry["all_on_run"] = _run_summary(all_on)
     paths = {}
     for kind, d in designs.items():
+        if kind == "all_on":  # judged by its clutch-set table below
+            continue
         log.info("%s: evaluating the %s design", exp.name, kind)
         if res.path_frames > 0 and kind in LOADED:  # the motion from rest first: its end competes
             entry["evaluations"][kind], paths[kind] = ev.evaluate_with_path(d, kind, res.path_frames)
@@ -118,6 +127,8 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     lap("evaluations")
     if exp.multi and len(ev.strips) <= PLAN_CLUTCHES:
         entry["plan"] = ev.plan(ours.design, res.path_frames)
+        if all_on:
+            entry["plan_all_on"] = ev.plan(all_on.design, res.path_frames)
     lap("plan")
     if res.path_frames > 0:
         entry["path"] = {}
@@ -131,7 +142,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     lap("paths")
     entry["evaluations"]["random"] = _random_baselines(exp.name, ev, g, budget, res.seeds)
     lap("random")
-    for kind in ("ours", "compliance", "manual"):
+    for kind in ("ours", "compliance", "manual", *(("all_on",) if all_on else ())):
         entry["images"][kind] = "img/" + _render_design(img / f"{exp.name}_{kind}.png", ev, designs[kind],
                                                         f"{exp.name}: {kind}")
     prog = ours.run / "progress.png"

@@ -104,7 +104,31 @@ def plan_lines(e: dict) -> list[str]:
             text = f"{r['resistance_J']:.3g}{frac}"
             cells.append(f"**{text}**" if rec[m] == key else text)
         rows.append([", ".join(key), *cells])
-    return md + md_table(["set ON", *motions], rows)
+    return md + md_table(["set ON", *motions], rows) + all_on_lines(e)
+
+
+def all_on_lines(e: dict) -> list[str]:
+    """The all-ON comparison of an experiment with activation sets: the same problem designed
+    with every clutch ON (``plan_all_on``), every clutch ON in each motion against our
+    design's own set there (empty without it)."""
+    base, plan = e.get("plan_all_on"), e.get("plan")
+    if not base or not plan:
+        return []
+    every = sorted(base["clutches"])
+
+    def resistance(p, m, clutches):
+        return next((r["resistance_J"] for r in p["sets"] if r["motion"] == m and sorted(r["clutches"]) == clutches),
+                    float("nan"))
+
+    parts = []
+    for m in plan["motions"]:
+        own = sorted(e.get("activation", {}).get(m, every))
+        mine, theirs = resistance(plan, m, own), resistance(base, m, every)
+        parts.append(f"{m} {theirs:.3g} J (ours with {', '.join(own)}: {mine:.3g} J, {mine / theirs:.0%})")
+    run = e.get("all_on_run", {})
+    return ["", "The all-ON design (the same problem designed with every clutch ON and the same clutches"
+            + (f", iteration {run['reported_iteration']}" if "reported_iteration" in run else "")
+            + "), every clutch ON: " + "; ".join(parts) + "."]
 
 
 def force_lines(e: dict) -> list[str]:
@@ -197,7 +221,7 @@ def build_markdown(doc: dict, figures: dict) -> str:
                 md += md_table(["motion", "clutch", *kinds], loads)
             md += plan_lines(e)
             md += force_lines(e)
-            imgs = [f"![{k}]({e['images'][k]})" for k in ("ours", "manual", "compliance", "progress", "force")
+            imgs = [f"![{k}]({e['images'][k]})" for k in ("ours", "manual", "compliance", "all_on", "progress", "force")
                     if k in e["images"]]
             md += [" ".join(imgs), ""]
             md += assessment(e) + [""]

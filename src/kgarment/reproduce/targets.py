@@ -127,13 +127,15 @@ def _resistance(plan: dict, motion: str, clutches) -> float | None:
 
 def selective_targets(exps: dict) -> list[Target]:
     """The ``selective`` target of every experiment with activation sets and a clutch-set
-    table, against its group's all-ON multi-motion design."""
+    table, against the all-ON design: the same problem designed with every clutch ON and the
+    same clutches (``plan_all_on``), or where an experiment has none (data of earlier
+    reproductions), its group's multi-motion design."""
     from kgarment.reproduce.catalog import MULTI_OF_GROUP
 
     out = []
     for e in exps.values():
         plan, sets = e.get("plan"), e.get("activation")
-        base = exps.get(MULTI_OF_GROUP.get(e["group"], ""), {}).get("plan")
+        base = e.get("plan_all_on") or exps.get(MULTI_OF_GROUP.get(e["group"], ""), {}).get("plan")
         if not plan or not sets:
             continue
         every = plan["clutches"]
