@@ -34,6 +34,28 @@ def test_product_weights_are_the_gradient_of_the_geometric_mean():
     assert combined_objective("product", {"a": 0.5, "b": -1.0}) == pytest.approx(2 * (0.5 * PRODUCT_FLOOR) ** 0.5)
 
 
+def test_shares_weigh_the_terms_and_their_sensitivities():
+    """With shares (an early pose and its motion, 1/2 each): the sum is the weighted sum and
+    its sensitivity weights are the shares; the product is the share-weighted geometric mean
+    (times the shares' sum), and its weights are proportional to its gradient (central finite
+    differences); all shares 1 is the plain objective."""
+    terms = {"a": 0.4, "a@0.33": 0.2, "b": 0.1}
+    shares = {"a": 0.5, "a@0.33": 0.5}
+    assert combined_objective("sum", terms, shares) == pytest.approx(0.5 * 0.4 + 0.5 * 0.2 + 0.1)
+    assert motion_weights("sum", terms, shares) == {"a": 0.5, "a@0.33": 0.5, "b": 1.0}
+    assert combined_objective("product", terms, shares) == pytest.approx(2 * (0.4 ** 0.5 * 0.2 ** 0.5 * 0.1) ** 0.5)
+    w = motion_weights("product", terms, shares)
+    assert sum(w.values()) / len(w) == pytest.approx(1.0)
+    h = 1e-7
+    grad = {m: (combined_objective("product", {**terms, m: t + h}, shares)
+                - combined_objective("product", {**terms, m: t - h}, shares)) / (2 * h) for m, t in terms.items()}
+    ratio = [grad[m] / w[m] for m in terms]
+    assert max(ratio) == pytest.approx(min(ratio), rel=1e-6)
+    ones = dict.fromkeys(terms, 1.0)
+    for combine in ("sum", "product"):
+        assert combined_objective(combine, terms, ones) == pytest.approx(combined_objective(combine, terms))
+
+
 def test_objective_value_combines_the_terms():
     energy = {("a", "on"): 3.0, ("a", "off"): 1.0, ("b", "on"): 5.0, ("b", "off"): 4.0}
     ref = {("a", "on"): 10.0, ("b", "on"): 10.0}  # terms 0.2 and 0.1

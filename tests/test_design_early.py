@@ -1,5 +1,5 @@
 """``[design] early``: a motion also designed for part of the way (the body posed at a
-share t of its movement), as one more motion of the design objective."""
+share t of its movement), as one more state of the design objective, sharing its motion's weight."""
 
 from __future__ import annotations
 
@@ -57,3 +57,13 @@ def test_the_early_pose_is_the_motion_part_of_the_way_in_design_runs_only(anny_b
     on = dict(setup.states())
     assert on[("arm_flexion.right@0.50", "on")].activation == on[("arm_flexion.right", "on")].activation
     assert [k for k, _ in setup_from_problem(p, anny_body, g, strips, "evaluate").states()] == keys[:2]
+    # the motion and its early pose share one motion's weight in the objective
+    assert setup.shares == {"arm_flexion.right": 0.5, "arm_flexion.right@0.50": 0.5}
+
+
+def test_a_motion_and_its_early_poses_split_one_share():
+    from kgarment.design.frames import early_shares
+
+    assert early_shares(()) == {}
+    two = early_shares((("a", 0.25), ("a", 0.5), ("b", 0.5)))
+    assert two == {"a": 1 / 3, "a@0.25": 1 / 3, "a@0.50": 1 / 3, "b": 0.5, "b@0.50": 0.5}

@@ -49,6 +49,18 @@ def early_motions(problem) -> dict:
     return _posed(problem, poses)
 
 
+def early_shares(early) -> dict[str, float]:
+    """{design state name: its share of the objective} of ``[design] early`` ((motion, t),
+    ...): a motion and its k early poses 1 / (1 + k) each, so that together they count as
+    one motion (:mod:`kgarment.design.objective`)."""
+    k = {}
+    for m, _ in early:
+        k[m] = k.get(m, 0) + 1
+    out = {m: 1.0 / (1 + n) for m, n in k.items()}
+    out.update({early_name(m, t): out[m] for m, t in early})
+    return out
+
+
 def early_name(motion: str, t: float) -> str:
     """The design state name of ``motion`` at the share ``t`` of its movement."""
     return f"{motion}@{t:.2f}"

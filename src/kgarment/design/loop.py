@@ -248,8 +248,9 @@ def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved,
 
 def combine_weights(setup: DesignSetup, row: dict) -> dict[str, float] | None:
     """The motions' weights of ``[design] combine`` from the terms in this iteration's
-    metrics ``row`` (:func:`kgarment.design.objective.motion_weights`; None for "sum")."""
-    return motion_weights(setup.combine, terms_of(row))
+    metrics ``row`` and the setup's shares (:func:`kgarment.design.objective.motion_weights`;
+    None for "sum" without shares)."""
+    return motion_weights(setup.combine, terms_of(row), setup.shares)
 
 
 def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: dict[StateKey, float],
@@ -259,7 +260,7 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
     frac = float(areas[design > 0.5].sum() / areas.sum())
     terms = objective_terms(setup.objective, solved.energy, reference, list(setup.motions), setup.lockout,
                             setup.balance)
-    obj = combined_objective(setup.combine, terms)
+    obj = combined_objective(setup.combine, terms, setup.shares)
     shape = setup.structure(design)
     row = {
         "iteration": st.iteration, "area": frac, "target": st.target, "objective": obj,

@@ -20,6 +20,12 @@
                the other motions have no ``solo:`` states and no reward).  Measured in
                docs/notes/design.md, "Balance".
 
+Shares (``DesignSetup.shares``): the beginning of a motion that ``[design] early`` adds is a
+state of its own in the objective, but not a motion of its own: the motion and its early
+poses split the motion's weight (flexion with one early pose: 1/2 each), so a motion
+designed for its beginning too counts no more than one without.  Measured on the selective
+sleeve (docs/notes/design.md, "Early poses share their motion's weight").
+
 How the motions combine (``[design] combine``, the active objective):
 
 ``sum``        the paper's: the motions' terms T_m (:func:`objective_terms`) add up and
@@ -92,28 +98,37 @@ def _balance_value(energy: dict[tuple[str, str], float], motion: str) -> float:
     return total
 
 
-def motion_weights(combine: str, terms: dict[str, float]) -> dict[str, float] | None:
+def motion_weights(combine: str, terms: dict[str, float],
+                   shares: dict[str, float] | None = None) -> dict[str, float] | None:
     """{motion: weight of its sensitivities} for ``combine`` from the motions' objective
-    ``terms`` (:func:`objective_terms`): None for "sum" (all 1), 1 / max(T_m, PRODUCT_FLOOR)
-    scaled to mean 1 for "product"."""
+    ``terms`` (:func:`objective_terms`) and their ``shares`` ({motion: share}, a motion not
+    in it: 1; :attr:`kgarment.design.DesignSetup.shares`): for "sum" the shares (None
+    without any: all 1), for "product" share_m / max(T_m, PRODUCT_FLOOR) scaled to mean 1."""
+    shares = shares or {}
     if combine == "sum":
-        return None
+        return {m: shares.get(m, 1.0) for m in terms} if shares else None
     if combine != "product":
         raise unknown("combine", combine, COMBINE_NAMES)
-    w = {m: 1.0 / max(t, PRODUCT_FLOOR) for m, t in terms.items()}
+    w = {m: shares.get(m, 1.0) / max(t, PRODUCT_FLOOR) for m, t in terms.items()}
     mean = sum(w.values()) / max(len(w), 1)
     return {m: v / mean for m, v in w.items()}
 
 
-def combined_objective(combine: str, terms: dict[str, float]) -> float:
-    """The scalar objective from the motions' ``terms``: their sum, or for "product" n
-    times the geometric mean of the terms floored at PRODUCT_FLOOR."""
+def combined_objective(combine: str, terms: dict[str, float], shares: dict[str, float] | None = None) -> float:
+    """The scalar objective from the motions' ``terms`` and ``shares`` (as in
+    :func:`motion_weights`): sum_m share_m T_m, or for "product" sum_m share_m times the
+    share-weighted geometric mean of the terms floored at PRODUCT_FLOOR (with every share
+    1: the sum, and n times the geometric mean)."""
+    shares = shares or {}
+    s = np.array([shares.get(m, 1.0) for m in terms], dtype=np.float64)
+    t = np.array(list(terms.values()), dtype=np.float64)
     if combine == "sum":
-        return float(sum(terms.values()))
+        return float(s @ t)
     if combine != "product":
         raise unknown("combine", combine, COMBINE_NAMES)
-    t = np.maximum(np.array(list(terms.values()), dtype=np.float64), PRODUCT_FLOOR)
-    return float(len(t) * np.exp(np.mean(np.log(t)))) if len(t) else 0.0
+    if not len(t):
+        return 0.0
+    return float(s.sum() * np.exp(s @ np.log(np.maximum(t, PRODUCT_FLOOR)) / s.sum()))
 
 
 def motion_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], motions,

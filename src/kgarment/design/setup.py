@@ -70,7 +70,9 @@ class DesignSetup:
     design (every motion ``MOTION@BODY``; {} for one body: ``model`` and ``areas`` serve all);
     path_start : every this many iterations the ON states are also solved over their motion
     from rest (``SolverSpec.path_start``; 0: never);  path_frames : {motion: (Motion, ...)} the
-    garment on the body posed at the motion's frames before the target (for ``path_start``).
+    garment on the body posed at the motion's frames before the target (for ``path_start``);
+    shares : {motion: its share of the objective} (a motion not in it: 1): a motion and the
+    early poses ``[design] early`` adds for it split one (:mod:`kgarment.design.objective`).
     """
 
     model: SimModel
@@ -96,6 +98,7 @@ class DesignSetup:
     wearers: dict[str, Wearer] = field(default_factory=dict, repr=False)
     path_start: int = 0
     path_frames: dict[str, tuple[Motion, ...]] = field(default_factory=dict, repr=False)
+    shares: dict[str, float] = field(default_factory=dict)
     store: object = field(default=None, repr=False, compare=False)  # EquilibriumStore (design.store) or None
     coarser: Callable[[], Coarser | None] | None = field(default=None, repr=False, compare=False)
 
@@ -106,7 +109,8 @@ class DesignSetup:
               activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0,
               balance: float | dict[str, float] = 0.0, guard: float = 0.0, combine: str = "sum",
               wearers: dict[str, Wearer] | None = None, path_start: int = 0,
-              path_frames: dict[str, tuple[Motion, ...]] | None = None) -> DesignSetup:
+              path_frames: dict[str, tuple[Motion, ...]] | None = None,
+              shares: dict[str, float] | None = None) -> DesignSetup:
         """Precompute areas, filter, adjacency and clutch ends for ``model`` (the garment on
         the body it is cut from; ``wearers``: a multi-body design's, see the class doc)."""
         X, F = model.garment_rest, model.garment_faces
@@ -126,7 +130,7 @@ class DesignSetup:
                    attached.astype(np.int64), loops, skin_start,
                    {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout),
                    dict(balance) if isinstance(balance, dict) else float(balance), float(guard), combine,
-                   dict(wearers or {}), int(path_start), dict(path_frames or {}))
+                   dict(wearers or {}), int(path_start), dict(path_frames or {}), dict(shares or {}))
 
     def model_of(self, motion: str) -> SimModel:
         """The SimModel ``motion`` is solved on (its wearer's garment)."""
@@ -318,15 +322,16 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
         solver, evolution = solver_options(problem, "evaluate", device), None
     motions = garment_motions(body, garment, problem.motions)
     activation = activation_vectors(problem, [c.name for c in use])
-    wearers = None
+    wearers, shares = None, {}
     if problem.body.phenotypes:
         motions, activation, wearers = wearer_motions(problem, body, garment, strips, model, motions, activation,
                                                       specs)
     if purpose == "design" and d.early:  # the beginnings of motions: more motions of the objective
-        from kgarment.design.frames import early_motions, early_name
+        from kgarment.design.frames import early_motions, early_name, early_shares
 
         motions = {**motions, **early_motions(problem)}
         activation = {**activation, **{early_name(m, t): activation[m] for m, t in d.early if m in activation}}
+        shares = early_shares(d.early)
     path_start = problem.solver.path_start if purpose == "design" and d.objective != "passive" else 0
     path_frames = {}
     if path_start:
@@ -349,7 +354,7 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
                               balance={m: d.balance_of(m) for m in motions} if d.objective == "active" else 0.0,
                               guard=d.guard,
                               combine=d.combine if d.objective == "active" else "sum",
-                              path_start=path_start, path_frames=path_frames)
+                              path_start=path_start, path_frames=path_frames, shares=shares)
     if problem.garment.subdivision > 0 and not wearers and \
             model.n_garment > constants.NESTED_VERTICES:
         setup = dataclasses.replace(setup, coarser=functools.cache(
