@@ -116,13 +116,14 @@ def add_skin_friction(sp) -> None:
                     "cloth on skin is about 0.3-0.6; default: the problem's [materials] skin_friction, else 0)")
 
 
-def add_clutch_model(sp, buckle_default: str = "the problem's [clutches] buckle") -> None:
+def add_clutch_model(sp, buckle_default: str = "the problem's [clutches] buckle",
+                     model_default: str = "the problem's [clutches] model") -> None:
     """--clutch-model, --holding-force and --buckle (the [clutches] hardware, kgarment.sim.slip;
-    ``buckle_default``: what --help says happens without --buckle / --no-buckle)."""
+    ``buckle_default`` and ``model_default``: what --help says happens without them)."""
     sp.add_argument("--clutch-model", choices=C.CLUTCH_MODELS, help="locked: an ON clutch never slips (the "
                     "paper's model); slip: it holds up to its holding force and slides at it beyond; cable: like slip, "
                     "but the strip carries one pull-only force between its ends (its parts may stretch while it is "
-                    "shortened on the whole) (default: the problem's [clutches] model)")
+                    f"shortened on the whole) (default: {model_default})")
     sp.add_argument("--holding-force", type=number(*C.CLUTCH_RANGES["holding_force"]), metavar="N",
                     help="newtons every clutch holds before it slides (implies --clutch-model slip unless cable; default: "
                     f"the problem's, else {C.HOLDING_STRESS / 1e4:g} N/cm^2 of strip)")

@@ -78,7 +78,9 @@ def add_parsers(sub) -> None:
     sp.add_argument("--preset", choices=C.PRESET_NAMES, help="material preset of every experiment (default: the "
                     "example files', paper); give each preset its own --out")
     sp.add_argument("--report-only", action="store_true", help="rewrite the report from OUT/data.json")
-    add_clutch_model(sp, "the paper's strips, whatever the example files say; a buckling reproduction "
-                     "needs its own --out")  # a clutch model too
+    ours = "the example's in the selective sleeve (ours, not the paper's)"
+    add_clutch_model(sp, f"the paper's strips in the paper's experiments, whatever the example files say, {ours}; "
+                     "a buckling reproduction needs its own --out",
+                     f"the paper's locked clutches in the paper's experiments, {ours}")
     add_device(sp)
     sp.set_defaults(func=cmd_reproduce)
