@@ -96,7 +96,7 @@ def test_the_report_names_the_all_on_comparison():
     assert all_on_lines(e) == []  # no all-ON design: nothing said
     e["plan_all_on"] = _plan([("flex", ["a", "b"], 5.0), ("ext", ["b", "a"], 12.0)])
     e["all_on_run"] = {"reported_iteration": 7}
-    (_, line) = all_on_lines(e)
+    (_, line, _) = all_on_lines(e)
     assert "iteration 7" in line
     assert "flex 5 J (ours with a: 4 J, 80%)" in line and "ext 12 J (ours with b: 9 J, 75%)" in line
 

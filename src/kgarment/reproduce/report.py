@@ -128,7 +128,7 @@ def all_on_lines(e: dict) -> list[str]:
     run = e.get("all_on_run", {})
     return ["", "The all-ON design (the same problem designed with every clutch ON and the same clutches"
             + (f", iteration {run['reported_iteration']}" if "reported_iteration" in run else "")
-            + "), every clutch ON: " + "; ".join(parts) + "."]
+            + "), every clutch ON: " + "; ".join(parts) + ".", ""]
 
 
 def force_lines(e: dict) -> list[str]:
