@@ -24,7 +24,7 @@ Shares (``DesignSetup.shares``): the beginning of a motion that ``[design] early
 state of its own in the objective, but not a motion of its own: the motion and its early
 poses split the motion's weight (flexion with one early pose: 1/2 each), so a motion
 designed for its beginning too counts no more than one without.  Measured on the selective
-sleeve (docs/notes/design.md, "Early poses share their motion's weight").
+sleeve (docs/notes/design.md, "The selective sleeve's holding force and early pose").
 
 How the motions combine (``[design] combine``, the active objective):
 

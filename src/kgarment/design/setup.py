@@ -326,7 +326,7 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
     if problem.body.phenotypes:
         motions, activation, wearers = wearer_motions(problem, body, garment, strips, model, motions, activation,
                                                       specs)
-    if purpose == "design" and d.early:  # the beginnings of motions: more motions of the objective
+    if purpose == "design" and d.early:  # the beginnings of motions: more states of the objective
         from kgarment.design.frames import early_motions, early_name, early_shares
 
         motions = {**motions, **early_motions(problem)}
