@@ -17,6 +17,7 @@ import numpy as np
 
 from kgarment.reproduce.catalog import DATA, EXPERIMENTS, PAPER_SHIRT_MATRIX, objectives_at_target
 from kgarment.reproduce.figures import emergent_figure, force_stats, rho_bars
+from kgarment.reproduce.targets import set_resistance
 from kgarment.reproduce.text import (
     assessment,
     comparison_paragraph,
@@ -115,15 +116,12 @@ def all_on_lines(e: dict) -> list[str]:
     if not base or not plan:
         return []
     every = sorted(base["clutches"])
-
-    def resistance(p, m, clutches):
-        return next((r["resistance_J"] for r in p["sets"] if r["motion"] == m and sorted(r["clutches"]) == clutches),
-                    float("nan"))
-
+    nan = float("nan")
     parts = []
     for m in plan["motions"]:
         own = sorted(e.get("activation", {}).get(m, every))
-        mine, theirs = resistance(plan, m, own), resistance(base, m, every)
+        mine, theirs = set_resistance(plan, m, own), set_resistance(base, m, every)
+        mine, theirs = nan if mine is None else mine, nan if theirs is None else theirs
         parts.append(f"{m} {theirs:.3g} J (ours with {', '.join(own)}: {mine:.3g} J, {mine / theirs:.0%})")
     run = e.get("all_on_run", {})
     return ["", "The all-ON design (the same problem designed with every clutch ON and the same clutches"

@@ -119,7 +119,9 @@ def evaluate_targets(doc: dict) -> list[Target]:
     return out
 
 
-def _resistance(plan: dict, motion: str, clutches) -> float | None:
+def set_resistance(plan: dict, motion: str, clutches) -> float | None:
+    """The resistance (J) of the set of ``clutches`` in ``motion`` from a clutch-set table
+    (``kgarment plan``'s JSON), in any order; None where the table has no such row."""
     key = sorted(clutches)
     return next((r["resistance_J"] for r in plan["sets"] if r["motion"] == motion and sorted(r["clutches"]) == key),
                 None)
@@ -142,11 +144,11 @@ def selective_targets(exps: dict) -> list[Target]:
         own = {m: list(sets.get(m, every)) for m in e["motions"]}
         bad, facts = [], []
         for m in e["motions"]:
-            mine = _resistance(plan, m, own[m]) or 0.0
+            mine = set_resistance(plan, m, own[m]) or 0.0
             rho = _on(e, "ours", m)
-            locks = [(o, _resistance(plan, m, own[o]) or 0.0) for o in e["motions"] if o != m and own[o] != own[m]]
+            locks = [(o, set_resistance(plan, m, own[o]) or 0.0) for o in e["motions"] if o != m and own[o] != own[m]]
             worst = max((r for _, r in locks), default=0.0) / max(mine, 1e-12)
-            keep = mine / max(_resistance(base, m, every) or 0.0, 1e-12) if base else float("nan")
+            keep = mine / max(set_resistance(base, m, every) or 0.0, 1e-12) if base else float("nan")
             facts.append(f"{m}: rho ON {rho:.2f}, other sets {100 * worst:.0f}% of its own, "
                          + (f"{100 * keep:.0f}% of the all-ON design" if base else "no all-ON design to compare"))
             if not (rho > 1 and worst <= 0.5 and (not base or keep >= 0.8)):
