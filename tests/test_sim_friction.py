@@ -139,3 +139,101 @@ def test_skin_friction_in_the_problem_file():
     for bad in (-0.1, 3.0, "high"):
         with pytest.raises(KgarmentError, match=r"\[materials\] skin_friction"):
             parse_problem({"materials": {"skin_friction": bad}})
+
+
+def test_a_strip_slides_freely_along_itself_and_with_friction_across():
+    """With ``along`` (a strip's direction) the potential ignores the slip along it: the
+    derivatives still match finite differences, the Hessian annihilates the normal and the
+    strip's direction, and a vertex sliding across it meets the full Coulomb force."""
+    eps = 2e-3
+    x, a, n, b = _random_slips(seed=2)
+    g0 = torch.Generator().manual_seed(3)
+    t = torch.randn(n.shape, generator=g0, dtype=torch.float64)
+    t = t - (t * n).sum(1, keepdim=True) * n
+    t = t / t.norm(dim=1, keepdim=True)
+    t[::4] = 0.0  # vertices on no strip
+    _, g, H = friction(x, a, n, b, eps, order=2, along=t)
+    h = 1e-8
+    for k in range(3):
+        d = torch.zeros_like(x)
+        d[:, k] = h
+        ep, gp, _ = friction(x + d, a, n, b, eps, order=1, along=t)
+        em, gm, _ = friction(x - d, a, n, b, eps, order=1, along=t)
+        assert torch.allclose((ep - em) / (2 * h), g[:, k], rtol=1e-6, atol=1e-9 * float(g.abs().max()))
+        assert torch.allclose((gp - gm) / (2 * h), H[:, :, k], rtol=1e-5, atol=1e-6 * float(H.abs().max()))
+    scale = float(H.abs().max())
+    assert float(torch.linalg.eigvalsh(H).min()) > -1e-9 * scale
+    assert torch.allclose(torch.einsum("pij,pj->pi", H, t), torch.zeros_like(t), atol=1e-9 * scale)
+    # sliding 5 cm along the strip costs nothing more; 5 mm across it costs the Coulomb force
+    e0, _, _ = friction(x, a, n, b, eps, along=t)
+    e1, _, _ = friction(x + 0.05 * t, a, n, b, eps, along=t)
+    assert torch.allclose(e1[t.norm(dim=1) > 0], e0[t.norm(dim=1) > 0], rtol=1e-12, atol=1e-15)
+    across = torch.linalg.cross(n, t)
+    on = t.norm(dim=1) > 0
+    _, gs, _ = friction(a + 5e-3 * across, a, n, b, eps, order=1, along=t)
+    assert torch.allclose(gs.norm(dim=1)[on], b[on], rtol=1e-12)
+
+
+def _hoop_clutch(tube, z, theta0, theta1, width, n_seg, prestrain):
+    """A clutch strip round the tube at height z from angle theta0 to theta1 (a hoop)."""
+    from kgarment.clutch.strip import ClutchStrip
+
+    th = np.linspace(theta0, theta1, n_seg + 1)
+    rows = [np.stack([th, np.full_like(th, zz)], 1) for zz in (z - width / 2, z, z + width / 2)]
+    P = np.concatenate(rows)
+    face, bary = tube.locate(P[:, 0], P[:, 1])
+    verts = np.einsum("ij,ijk->ik", bary, tube.vertices[tube.faces[face]])
+    r = n_seg + 1
+    L, C, R = 0, r, 2 * r
+    f = []
+    for s in range(n_seg):
+        f += [[L + s, L + s + 1, C + s + 1], [L + s, C + s + 1, C + s],
+              [C + s, C + s + 1, R + s + 1], [C + s, R + s + 1, R + s]]
+    return ClutchStrip(name="hoop", vertices=verts, faces=np.array(f), bind_face=face, bind_bary=bary,
+                       anchors=np.array([L, C, R, L + n_seg, C + n_seg, R + n_seg]),
+                       centerline=np.arange(C, C + r), length=tube.radius * (theta1 - theta0), width=width,
+                       prestrain=prestrain)
+
+
+def test_a_taut_cable_round_the_body_presses_its_own_vertices_into_friction():
+    """A cable clutch wrapped half round a cylinder and pulled taut (prestrain) presses on
+    the body with its own vertices, not through the garment's: the friction bounds the lag
+    gives its vertices add up to mu T theta (a string of tension T wrapped over theta presses
+    with T / R per unit length), and each of its vertices slides freely round the hoop (its
+    direction) but not along the tube's axis."""
+    from kgarment.sim import clutch_tensions
+    from kgarment.sim.serial import prepare_state
+    from kgarment.sim.synthetic import Tube
+
+    mu, R, theta = 0.4, 0.05, np.pi
+    tube = Tube(R, 0.0, 0.2, 64, 21)
+    clutch = _hoop_clutch(tube, 0.1, 0.0, theta, 0.01, 32, prestrain=0.9)
+    model = build_model(tube.vertices, tube.faces, [clutch], preset="reference", clutch_cable=True,
+                        holding_force=[1e4], friction=0.0)
+    state = SimState.create(tube.motion("rest", 0.0, 0.0), [1.0])
+    design = np.ones(model.n_faces)
+    (r,) = solve_states(model, design, [state], options=SolverOptions(tol=1e-7, max_iter=400))
+    assert r.converged
+    (tension,) = clutch_tensions(model, design, state, r.x)
+    assert tension > 1.0
+    with_mu = build_model(tube.vertices, tube.faces, [clutch], preset="reference", clutch_cable=True,
+                          holding_force=[1e4], friction=mu)
+    prob = prepare_state(with_mu, design, state)
+    bound, normal, along = prob.friction_lag(torch.as_tensor(r.x))
+    n = with_mu.n_garment
+    # the cable's pressure: mu T times the angle its path turns (sim.cable: from the start
+    # anchors' centroid through the centre line to the end anchors'), plus a few percent
+    # from the strip's own guide membrane, stretched with it, and its ties to the garment
+    xc = r.x[n:]
+    path = np.concatenate([xc[clutch.anchors[:3]].mean(0)[None], xc[clutch.centerline[1:-1]],
+                           xc[clutch.anchors[3:]].mean(0)[None]])
+    u = np.diff(path, axis=0)
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    turn = np.arccos(np.clip((u[1:] * u[:-1]).sum(1), -1.0, 1.0)).sum()
+    assert turn == pytest.approx(theta, rel=0.1)
+    assert mu * tension * turn <= bound[n:].sum() <= 1.1 * mu * tension * turn
+    # the clutch's directions run round the hoop (across the axis, tangent to the body)
+    on = np.linalg.norm(along[n:], axis=1) > 0
+    assert on.all() and np.abs(along[n:, 2]).max() < 0.02  # within about a degree
+    assert np.abs((along[n:] * normal[n:]).sum(1)).max() < 1e-9
+    assert not np.linalg.norm(along[:n], axis=1).any()

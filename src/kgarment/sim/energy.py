@@ -18,7 +18,7 @@ import torch
 
 from kgarment.sim.cable import LOCKED_CAP, SPACING, Cable, cable_energy
 from kgarment.sim.contact import NEIGHBORS, contact, gather, imls_fast, update_neighbors
-from kgarment.sim.friction import friction, normal_forces
+from kgarment.sim.friction import friction, normal_forces, strip_directions, strip_neighbours
 from kgarment.sim.materials import (
     check_design,
     clutch_material,
@@ -178,13 +178,15 @@ class StateProblem:
         self._cache_obj = self._pre = None
         self.m_garment = model.n_faces
         self.n_evals = 0
-        # skin-garment friction (sim.friction): anchors at the skin-tight start, the normal
-        # forces and normals lagged (set_friction), none until they are set
+        # skin friction (sim.friction) on every vertex, the garment's and the clutches': anchors
+        # at the skin-tight start, the normal forces and normals lagged (set_friction), none
+        # until they are set
         self.friction_on = model.friction > 0.0
         if self.friction_on:
-            n = model.n_garment
-            self.fr_anchor = T(self.initial_positions()[:n])
-            self.fr_normal, self.fr_bound = T(np.zeros((n, 3))), T(np.zeros(n))
+            x0 = self.initial_positions()
+            self.fr_anchor, self.fr_strip = T(x0), strip_neighbours(model)
+            self.fr_normal, self.fr_along = T(np.zeros_like(x0)), T(np.zeros_like(x0))
+            self.fr_bound = T(np.zeros(len(x0)))
 
     def _cables(self, sid: np.ndarray, sk: np.ndarray, scap: np.ndarray) -> list[Cable]:
         """The cables (``sim.cable``) of the ON clutches whose elements are ``sid`` (q,), with
@@ -318,18 +320,18 @@ class StateProblem:
         return out
 
     def _friction(self, x: torch.Tensor, order: int):
-        """The friction potential on the garment's vertices (``sim.friction``): energy (n,)
-        (zeros without friction), gradient (n, 3) and Hessian (n, 3, 3) or None."""
+        """The friction potential on every vertex (``sim.friction``): energy (N,) (zeros
+        without friction), gradient (N, 3) and Hessian (N, 3, 3) or None."""
         if not self.friction_on:
             return x.new_zeros(1), None, None
-        n = self.model.n_garment
-        return friction(x[:n], self.fr_anchor, self.fr_normal, self.fr_bound, self.model.friction_slip,
-                        order=order)
+        return friction(x, self.fr_anchor, self.fr_normal, self.fr_bound, self.model.friction_slip,
+                        order=order, along=self.fr_along)
 
-    def friction_lag(self, x: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
-        """The friction bounds ``mu lambda`` (n,) N and unit contact normals (n, 3) at x
-        (``sim.friction.normal_forces``), for :meth:`set_friction`."""
-        model, n = self.model, self.model.n_garment
+    def friction_lag(self, x: torch.Tensor) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The friction bounds ``mu lambda`` (N,) N, unit contact normals (N, 3) and the
+        strips' directions (N, 3) (zero off the strips) of every vertex at x
+        (``sim.friction.normal_forces``, ``strip_directions``), for :meth:`set_friction`."""
+        model = self.model
         _, g_m, _ = self._membrane(x, 1, self.projection)
         _, g_s = springs(x, self.s_index, self.s_coef, self.s_target, self.s_k, order=1)
         g = g_s.clone()
@@ -337,14 +339,15 @@ class StateProblem:
         for c, gk in zip(self.cables, self._cable_terms(x, 1)[1]):
             g.index_add_(0, c.vertices, gk)
         f, gf = self.contact_linearization(x)
-        gf = gf[:n]
         normal = gf / np.maximum(np.linalg.norm(gf, axis=1), 1e-300)[:, None]
-        lam = normal_forces(g[:n].cpu().numpy(), normal, f[:n], near=0.1 * model.mean_edge)
-        return model.friction * lam, normal
+        lam = normal_forces(g.cpu().numpy(), normal, f, near=0.1 * model.mean_edge)
+        along = strip_directions(x.detach().cpu().numpy(), self.fr_strip, normal)
+        return model.friction * lam, normal, along
 
-    def set_friction(self, bound: np.ndarray, normal: np.ndarray) -> None:
-        """Hold the friction bounds (n,) N and normals (n, 3) for the next solves."""
-        self.fr_bound, self.fr_normal = self._t(bound), self._t(normal)
+    def set_friction(self, bound: np.ndarray, normal: np.ndarray, along: np.ndarray) -> None:
+        """Hold the friction bounds (N,) N, normals (N, 3) and strip directions (N, 3) for
+        the next solves."""
+        self.fr_bound, self.fr_normal, self.fr_along = self._t(bound), self._t(normal), self._t(along)
 
     def terms(self, x: torch.Tensor) -> tuple[dict[str, float], np.ndarray]:
         """Energy by term (J; ``friction`` is the dissipation potential, not stored energy)

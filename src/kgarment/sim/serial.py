@@ -138,15 +138,15 @@ def _with_friction(prob: StateProblem, x0: np.ndarray, options: SolverOptions, l
     def lag(x):
         return prob.friction_lag(torch.as_tensor(np.asarray(x, dtype=np.float64), device=prob.device))
 
-    bound, normal = lag(x0)
-    prob.set_friction(bound, normal)
+    bound, normal, along = lag(x0)
+    prob.set_friction(bound, normal, along)
     x, rec = _solve(prob, x0, options, linsolver)
     for _ in range(options.friction_lags):
-        new, new_normal = lag(x)
+        new, normal, along = lag(x)
         if np.abs(new - bound).max(initial=0.0) <= FRICTION_SETTLED * max(new.max(initial=0.0), 1e-12):
             break
-        bound, normal = new, new_normal
-        prob.set_friction(bound, normal)
+        bound = new
+        prob.set_friction(bound, normal, along)
         x, rec2 = _solve(prob, x, options, linsolver)
         rec = _spent(rec2, rec, rec2)
     log.debug("state %s: friction bounds up to %.3g N over %d vertices", prob.name, bound.max(initial=0.0),
