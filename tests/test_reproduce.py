@@ -340,6 +340,13 @@ def test_a_reproduction_folder_keeps_only_its_own_resolution_and_preset(tmp_path
         previous_results(tmp_path, tiny, {"preset": None, "buckle": True})
     with pytest.raises(KgarmentError, match="holds a tiny-resolution reproduction, not preview"):
         previous_results(tmp_path, RESOLUTIONS["preview"], None)
+    # and skin friction: the selective sleeve made on a frictionless body before its example had friction
+    sel = {"name": "sleeve_selective", "preset": "paper", "clutch_model": "cable", "clutch_buckle": True}
+    (tmp_path / "data.json").write_text(json.dumps({**doc, "experiments": {"sleeve_selective": sel}}))
+    with pytest.raises(KgarmentError, match="buckling clutch strips, not preset paper, clutch model cable, "
+                                            "buckling clutch strips, skin friction 0.4;"):
+        previous_results(tmp_path, tiny, None)
+    (tmp_path / "data.json").write_text(json.dumps(doc))
     # a committed report (entries without run folders) is continued, not redone, unless named
     assert not run_again("arm_extension", False, doc["experiments"], tmp_path)
     assert run_again("arm_extension", True, doc["experiments"], tmp_path)

@@ -123,7 +123,8 @@ def test_reproduce_tiny_selective_sleeve(tmp_path, anny_body):
     assert "selective" in summary["targets"]
     md = (rep / "report.md").read_text()
     line = next(x for x in md.splitlines() if x.startswith("- `selective`"))
-    assert "sleeve_selective (cable clutches)" in line
+    assert "sleeve_selective (cable clutches, skin friction 0.4)" in line
+    assert e["skin_friction"] == 0.4 and ", skin friction 0.4 (README" in md
     for m, own in e["activation"].items():  # the target's share is the two tables' ratio
         mine = next(r["resistance_J"] for r in e["plan"]["sets"] if r["motion"] == m and r["clutches"] == list(own))
         theirs = next(r["resistance_J"] for r in e["plan_all_on"]["sets"]

@@ -204,6 +204,7 @@ def build_markdown(doc: dict, figures: dict) -> str:
                    f"{100 * e['budget']:.0f}%"
                    + balance_note(e)
                    + early_note(e)
+                   + (f", skin friction {e['skin_friction']:g} (README, \"Skin friction\")" if e.get("skin_friction") else "")
                    + f"; our run took {e['run']['iterations']} iterations, {e['run']['seconds'] / 60:.1f} min.", ""]
             head = ["design", *[f"{m} ON / OFF" for m in e["motions"]], "parts (clutch-linked / not)", "clutch ends on reinf.", "area"]
             md += md_table(head, design_rows(e))

@@ -153,7 +153,10 @@ def selective_targets(exps: dict) -> list[Target]:
                          + (f"{100 * keep:.0f}% of the all-ON design" if base else "no all-ON design to compare"))
             if not (rho > 1 and worst <= 0.5 and (not base or keep >= 0.8)):
                 bad.append(m)
-        model = f" ({e['clutch_model']} clutches)" if e.get("clutch_model") else ""  # the lock depends on it
+        # the lock and the resistance depend on the clutches and the skin
+        said = ([f"{e['clutch_model']} clutches"] if e.get("clutch_model") else []) + (
+            [f"skin friction {e['skin_friction']:g}"] if e.get("skin_friction") else [])
+        model = f" ({', '.join(said)})" if said else ""
         out.append(Target("selective", not bad, f"{e['name']}{model}: each motion's own set gives rho ON > 1, another "
                           "motion's set stores at most half of that, and the design keeps 80% of the all-ON design's "
                           "resistance (" + "; ".join(facts) + ")"))
