@@ -174,27 +174,6 @@ def test_a_strip_slides_freely_along_itself_and_with_friction_across():
     assert torch.allclose(gs.norm(dim=1)[on], b[on], rtol=1e-12)
 
 
-def _hoop_clutch(tube, z, theta0, theta1, width, n_seg, prestrain):
-    """A clutch strip round the tube at height z from angle theta0 to theta1 (a hoop)."""
-    from kgarment.clutch.strip import ClutchStrip
-
-    th = np.linspace(theta0, theta1, n_seg + 1)
-    rows = [np.stack([th, np.full_like(th, zz)], 1) for zz in (z - width / 2, z, z + width / 2)]
-    P = np.concatenate(rows)
-    face, bary = tube.locate(P[:, 0], P[:, 1])
-    verts = np.einsum("ij,ijk->ik", bary, tube.vertices[tube.faces[face]])
-    r = n_seg + 1
-    L, C, R = 0, r, 2 * r
-    f = []
-    for s in range(n_seg):
-        f += [[L + s, L + s + 1, C + s + 1], [L + s, C + s + 1, C + s],
-              [C + s, C + s + 1, R + s + 1], [C + s, R + s + 1, R + s]]
-    return ClutchStrip(name="hoop", vertices=verts, faces=np.array(f), bind_face=face, bind_bary=bary,
-                       anchors=np.array([L, C, R, L + n_seg, C + n_seg, R + n_seg]),
-                       centerline=np.arange(C, C + r), length=tube.radius * (theta1 - theta0), width=width,
-                       prestrain=prestrain)
-
-
 def test_a_taut_cable_round_the_body_presses_its_own_vertices_into_friction():
     """A cable clutch wrapped half round a cylinder and pulled taut (prestrain) presses on
     the body with its own vertices, not through the garment's: the friction bounds the lag
@@ -207,7 +186,7 @@ def test_a_taut_cable_round_the_body_presses_its_own_vertices_into_friction():
 
     mu, R, theta = 0.4, 0.05, np.pi
     tube = Tube(R, 0.0, 0.2, 64, 21)
-    clutch = _hoop_clutch(tube, 0.1, 0.0, theta, 0.01, 32, prestrain=0.9)
+    clutch = tube.hoop("hoop", 0.1, 0.0, theta, 0.01, 32, prestrain=0.9)
     model = build_model(tube.vertices, tube.faces, [clutch], preset="reference", clutch_cable=True,
                         holding_force=[1e4], friction=0.0)
     state = SimState.create(tube.motion("rest", 0.0, 0.0), [1.0])

@@ -65,9 +65,23 @@ class Tube:
         zs = np.linspace(za, zb, n_seg + 1)
         th = np.array([theta - dth, theta, theta + dth])
         T, Z = np.meshgrid(th, zs, indexing="ij")  # rows: left, centre, right
+        return self._strip(name, T, Z, zb - za, width, prestrain)
+
+    def hoop(self, name: str, z: float, theta0: float, theta1: float, width: float,
+             n_seg: int, prestrain: float = 1.0) -> ClutchStrip:
+        """A strip round the tube at height ``z`` from angle ``theta0`` to ``theta1``."""
+        th = np.linspace(theta0, theta1, n_seg + 1)
+        Z = np.array([z - width / 2.0, z, z + width / 2.0])[:, None] * np.ones_like(th)
+        return self._strip(name, np.broadcast_to(th, Z.shape), Z, self.radius * (theta1 - theta0), width, prestrain)
+
+    def _strip(self, name: str, T: np.ndarray, Z: np.ndarray, length: float, width: float,
+               prestrain: float) -> ClutchStrip:
+        """The strip of three rows (3, r) of parameter points (angle ``T``, height ``Z``):
+        side, centre, side; 4 triangles per segment, its ends' rows the anchors."""
         face, bary = self.locate(T.ravel(), Z.ravel())
         verts = np.einsum("ij,ijk->ik", bary, self.vertices[self.faces[face]])
-        r = n_seg + 1
+        r = T.shape[1]
+        n_seg = r - 1
         L, C, R = 0, r, 2 * r
         f = []
         for s in range(n_seg):
@@ -76,7 +90,7 @@ class Tube:
         anchors = np.array([L, C, R, L + n_seg, C + n_seg, R + n_seg])
         return ClutchStrip(name=name, vertices=verts, faces=np.array(f), bind_face=face,
                            bind_bary=bary, anchors=anchors, centerline=np.arange(C, C + r),
-                           length=zb - za, width=width, prestrain=prestrain)
+                           length=length, width=width, prestrain=prestrain)
 
     def motion(self, name: str, stretch: float, twist: float, body_res: tuple[int, int] = (96, 60),
                margin: float = 0.05) -> Motion:
