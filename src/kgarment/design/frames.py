@@ -61,6 +61,17 @@ def early_shares(early) -> dict[str, float]:
     return out
 
 
+def objective_shares(early, weights) -> dict[str, float]:
+    """{design state name: its share of the objective}: :func:`early_shares` of ``[design]
+    early`` times each motion's ``[design] weights`` ((motion, w), ...; a motion not named:
+    1), a motion's early poses taking its weight."""
+    out = early_shares(early)
+    for m, w in weights:
+        out[m] = out.get(m, 1.0) * w
+    out.update({early_name(m, t): out[m] for m, t in early})  # an early pose shares its motion's
+    return out
+
+
 def early_name(motion: str, t: float) -> str:
     """The design state name of ``motion`` at the share ``t`` of its movement."""
     return f"{motion}@{t:.2f}"

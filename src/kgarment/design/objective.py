@@ -25,6 +25,9 @@ state of its own in the objective, but not a motion of its own: the motion and i
 poses split the motion's weight (flexion with one early pose: 1/2 each), so a motion
 designed for its beginning too counts no more than one without.  Measured on the selective
 sleeve (docs/notes/design.md, "The selective sleeve's holding force and early pose").
+``[design] weights = { MOTION = w }`` multiplies a motion's share (and its early poses') by
+w: the paper counts every motion equally, a designer may rank them (the selective sleeve's
+extension, docs/notes/design.md, "Motion weights").
 
 How the motions combine (``[design] combine``, the active objective):
 
@@ -98,6 +101,12 @@ def _balance_value(energy: dict[tuple[str, str], float], motion: str) -> float:
     return total
 
 
+def _share(shares: dict[str, float], name: str) -> float:
+    """The share of the design state ``name`` in ``shares``: its own, else its motion's (a
+    wearer's ``MOTION@BODY`` takes MOTION's ``[design] weights``), else 1."""
+    return shares.get(name, shares.get(name.partition("@")[0], 1.0))
+
+
 def motion_weights(combine: str, terms: dict[str, float],
                    shares: dict[str, float] | None = None) -> dict[str, float] | None:
     """{motion: weight of its sensitivities} for ``combine`` from the motions' objective
@@ -106,10 +115,10 @@ def motion_weights(combine: str, terms: dict[str, float],
     without any: all 1), for "product" share_m / max(T_m, PRODUCT_FLOOR) scaled to mean 1."""
     shares = shares or {}
     if combine == "sum":
-        return {m: shares.get(m, 1.0) for m in terms} if shares else None
+        return {m: _share(shares, m) for m in terms} if shares else None
     if combine != "product":
         raise unknown("combine", combine, COMBINE_NAMES)
-    w = {m: shares.get(m, 1.0) / max(t, PRODUCT_FLOOR) for m, t in terms.items()}
+    w = {m: _share(shares, m) / max(t, PRODUCT_FLOOR) for m, t in terms.items()}
     mean = sum(w.values()) / max(len(w), 1)
     return {m: v / mean for m, v in w.items()}
 
@@ -120,7 +129,7 @@ def combined_objective(combine: str, terms: dict[str, float], shares: dict[str, 
     share-weighted geometric mean of the terms floored at PRODUCT_FLOOR (with every share
     1: the sum, and n times the geometric mean)."""
     shares = shares or {}
-    s = np.array([shares.get(m, 1.0) for m in terms], dtype=np.float64)
+    s = np.array([_share(shares, m) for m in terms], dtype=np.float64)
     t = np.array(list(terms.values()), dtype=np.float64)
     if combine == "sum":
         return float(s @ t)

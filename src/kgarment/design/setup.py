@@ -72,7 +72,8 @@ class DesignSetup:
     from rest (``SolverSpec.path_start``; 0: never);  path_frames : {motion: (Motion, ...)} the
     garment on the body posed at the motion's frames before the target (for ``path_start``);
     shares : {motion: its share of the objective} (a motion not in it: 1): a motion and the
-    early poses ``[design] early`` adds for it split one (:mod:`kgarment.design.objective`).
+    early poses ``[design] early`` adds for it split one, times the motion's ``[design]
+    weights`` (:mod:`kgarment.design.objective`).
     """
 
     model: SimModel
@@ -327,11 +328,14 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
         motions, activation, wearers = wearer_motions(problem, body, garment, strips, model, motions, activation,
                                                       specs)
     if purpose == "design" and d.early:  # the beginnings of motions: more states of the objective
-        from kgarment.design.frames import early_motions, early_name, early_shares
+        from kgarment.design.frames import early_motions, early_name
 
         motions = {**motions, **early_motions(problem)}
         activation = {**activation, **{early_name(m, t): activation[m] for m, t in d.early if m in activation}}
-        shares = early_shares(d.early)
+    if purpose == "design" and (d.early or d.weights):
+        from kgarment.design.frames import objective_shares
+
+        shares = objective_shares(d.early, d.weights)
     path_start = problem.solver.path_start if purpose == "design" and d.objective != "passive" else 0
     path_frames = {}
     if path_start:

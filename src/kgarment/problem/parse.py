@@ -25,6 +25,7 @@ from kgarment.problem.spec import (
     DEFAULT_MOTIONS,
     FILTERS,
     METHODS,
+    MOTION_WEIGHT_MAX,
     OBJECTIVE_NAMES,
     PRESET_NAMES,
     BesoParams,
@@ -64,7 +65,7 @@ def parse_problem(data: dict, base: Path = Path("."), source: Path | None = None
     clutches = _clutches(data["clutches"], base) if "clutches" in data else None
     design = _design(data.get("design", {}))
     _check_levels(design.levels, garment.subdivision)
-    for key, table in (("early", design.early), ("balance", design.balance)):
+    for key, table in (("early", design.early), ("balance", design.balance), ("weights", design.weights)):
         bad = [m for m, _ in table if m not in names] if isinstance(table, tuple) else []
         if bad:
             raise KgarmentError(f"[design] {key}: {bad[0]!r} is not a motion of the problem; its motions: "
@@ -327,14 +328,19 @@ def _subdivision(sub) -> int:
 def _design(d: dict) -> DesignSpec:
     """[design]: the objective, protection and the BESO fields (flat keys) -> DesignSpec."""
     beso_keys = {f.name for f in dataclasses.fields(BesoParams)}
-    own = {f.name for f in dataclasses.fields(DesignSpec)} - {"beso", "levels", "early", "balance"}
-    check_keys("design", d, sorted(own) + ["balance", "levels", "early"]
+    tables = ["balance", "levels", "early", "weights"]
+    own = {f.name for f in dataclasses.fields(DesignSpec)} - {"beso", *tables}
+    check_keys("design", d, sorted(own) + tables
                + [f.name for f in dataclasses.fields(BesoParams)])
     ranges = C.DESIGN_RANGES
     beso = section(BesoParams, "design", {k: v for k, v in d.items() if k in beso_keys}, {"filter": FILTERS}, ranges)
     rest = section(_DesignOwn, "design", {k: v for k, v in d.items() if k in own},
                    {"objective": OBJECTIVE_NAMES, "combine": COMBINE_NAMES}, ranges)
-    return DesignSpec(beso=beso, **asdict(rest), levels=_levels(d.get("levels", [])), early=_early(d.get("early", {})),
+    return DesignSpec(beso=beso, **asdict(rest), levels=_levels(d.get("levels", [])),
+                      early=_table("early", d.get("early", {}), "share", lambda t: 0.0 < t < 1.0, "a number in (0, 1)",
+                                   '{ "arm_flexion.right" = 0.33 }'),
+                      weights=_table("weights", d.get("weights", {}), "weight", lambda w: 0.0 < w <= MOTION_WEIGHT_MAX,
+                                     f"a number in (0, {MOTION_WEIGHT_MAX:g}]", '{ "arm_extension.right" = 1.5 }'),
                       balance=_balance(d.get("balance", 0.0)))
 
 
@@ -356,15 +362,15 @@ def _balance(v) -> float | tuple[tuple[str, float], ...]:
                         'of motion = weight, e.g. { "arms_raise" = 2.0 }')
 
 
-def _early(v) -> tuple[tuple[str, float], ...]:
-    """[design] early = {MOTION = t, ...}: t in (0, 1) (the motions are checked against
-    [motions] use in :func:`parse_problem`)."""
+def _table(key: str, v, what: str, ok, allowed: str, example: str) -> tuple[tuple[str, float], ...]:
+    """[design] KEY = {MOTION = value, ...}: each value (a ``what``) a number for which ``ok``
+    holds (``allowed`` says which; the motions are checked against [motions] use in
+    :func:`parse_problem`)."""
     if not isinstance(v, dict):
-        raise KgarmentError(f"[design] early = {v!r} must be a table of motion = share of the motion in (0, 1), "
-                            'e.g. { "arm_flexion.right" = 0.33 }')
+        raise KgarmentError(f"[design] {key} = {v!r} must be a table of motion = {what} ({allowed}), e.g. {example}")
     for m, t in v.items():
-        if isinstance(t, bool) or not isinstance(t, (int, float)) or not 0.0 < t < 1.0:
-            raise KgarmentError(f"[design] early: {m} = {t!r}; the share of the motion must be a number in (0, 1)")
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not ok(t):
+            raise KgarmentError(f"[design] {key}: {m} = {t!r}; the {what} must be {allowed}")
     return tuple((str(m), float(t)) for m, t in v.items())
 
 

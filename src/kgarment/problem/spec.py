@@ -147,6 +147,9 @@ class BesoParams:
         return C.target_reached(area, self.target_area, self.er)
 
 
+MOTION_WEIGHT_MAX = 10.0  # [design] weights: the largest weight of a motion
+
+
 @dataclass(frozen=True)
 class DesignSpec:
     """[design]: the objective, the BESO parameters and what is kept reinforced.
@@ -173,7 +176,10 @@ class DesignSpec:
     movement (the body posed part of the way; one more motion ``MOTION@t`` of the design
     objective, ON with the motion's clutch set and OFF; design runs only, evaluations stay
     at the target poses): a design that holds the beginning of the motion anchors its
-    clutches before the end can find another equilibrium (README, "Design runs").
+    clutches before the end can find another equilibrium (README, "Design runs");
+    weights : ((motion, w), ...) each named motion's weight in the objective, w > 0 (a
+    motion not named: 1; its early poses share it): a designer's priorities where the
+    paper counts every motion equally (:mod:`kgarment.design.objective`).
     """
 
     objective: str = "active"
@@ -186,6 +192,7 @@ class DesignSpec:
     guard: float = 0.0
     combine: str = "sum"
     early: tuple[tuple[str, float], ...] = ()
+    weights: tuple[tuple[str, float], ...] = ()
 
     def flat(self) -> dict:
         """The [design] table as written in a problem file (BESO fields flattened)."""
@@ -204,6 +211,8 @@ class DesignSpec:
             out["combine"] = self.combine
         if self.early:
             out["early"] = dict(self.early)
+        if self.weights:
+            out["weights"] = dict(self.weights)
         return out
 
     def balance_of(self, motion: str) -> float:

@@ -111,7 +111,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
              "states": ev.n_states, "run": _run_summary(ours), "compliance_run": _run_summary(comp),
              "activation": {m: dict(v) for m, v in problem.activation}, "lockout": problem.design.lockout,
              "balance": problem.design.flat().get("balance", 0.0), "early": dict(problem.design.early),
-             "evaluations": {}, "images": {}}
+             "weights": dict(problem.design.weights), "evaluations": {}, "images": {}}
     if all_on:
         entry["all_on_run"] = _run_summary(all_on)
     paths = {}

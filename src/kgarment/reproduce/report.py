@@ -204,6 +204,7 @@ def build_markdown(doc: dict, figures: dict) -> str:
                    f"{100 * e['budget']:.0f}%"
                    + balance_note(e)
                    + early_note(e)
+                   + weights_note(e)
                    + (f", skin friction {e['skin_friction']:g} (README, \"Skin friction\")" if e.get("skin_friction") else "")
                    + f"; our run took {e['run']['iterations']} iterations, {e['run']['seconds'] / 60:.1f} min.", ""]
             head = ["design", *[f"{m} ON / OFF" for m in e["motions"]], "parts (clutch-linked / not)", "clutch ends on reinf.", "area"]
@@ -341,3 +342,12 @@ def early_note(e: dict) -> str:
         return ""
     parts = ", ".join(f"{m} at {t:g} of its movement" for m, t in early.items())
     return f", also designed for the beginning of a motion (`[design] early`: {parts})"
+
+
+def weights_note(e: dict) -> str:
+    """The report's words for an experiment's ``[design] weights`` ("" without any)."""
+    weights = e.get("weights") or {}
+    if not weights:
+        return ""
+    parts = ", ".join(f"{m} {w:g}" for m, w in weights.items())
+    return f", motions weighted in the objective (`[design] weights`: {parts}; the others 1)"
