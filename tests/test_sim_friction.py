@@ -216,3 +216,57 @@ def test_a_taut_cable_round_the_body_presses_its_own_vertices_into_friction():
     assert on.all() and np.abs(along[n:, 2]).max() < 0.02  # within about a degree
     assert np.abs((along[n:] * normal[n:]).sum(1)).max() < 1e-9
     assert not np.linalg.norm(along[:n], axis=1).any()
+
+
+def test_what_slipped_stays_slipped_where_friction_holds_the_frame_before():
+    """The capstan band pulled 2 cm, then let back to 1 cm.  Anchored at the skin-tight
+    garment (no memory) it is the band pulled 1 cm straight away: its tension falls from the
+    pulled end as exp(-mu phi) everywhere it slid.  Anchored where the 2 cm pull left it (a
+    motion's next frame, ``SimState.anchor``), the cloth near the pulled end slides back,
+    its tension now rising inwards as exp(mu phi); near the held end it sticks where it was,
+    with the 2 cm pull's tension (Coulomb hysteresis).  The anchor is part of the state's
+    digest (``design.store``)."""
+    from kgarment.design.store import state_digest
+
+    R, w = 0.05, 0.01
+    v, faces, idx = _band(R, w, n_phi=48, n_z=2)
+    held = np.arange(len(faces))[np.isin(faces, idx[:2].ravel()).all(1)]
+    pulled = np.arange(len(faces))[np.isin(faces, idx[-2:].ravel()).all(1)]
+    attach = np.concatenate([held, pulled])
+    bv, bn, bf = cylinder_body(R, -0.05, 0.06, 180, 12)
+
+    def pull(name, by):
+        targets = v[faces[attach]].mean(1)
+        targets[len(held):] += [0.0, -by, 0.0]
+        return Motion.create(name, v, bv, bn, attach, targets, bf, garment_faces=faces)
+
+    model = dataclasses.replace(build_model(v, faces, preset="paper", friction=0.3), friction_slip=2e-5)
+    design = np.full(len(faces), X_MIN)
+    opts = SolverOptions(tol=1e-7, max_iter=400, friction_lags=12)
+    (two,) = solve_states(model, design, [SimState.create(pull("2 cm", 0.02), (), name="2 cm")], options=opts)
+    back = pull("1 cm", 0.01)
+    fresh = SimState.create(back, (), name="1 cm")
+    kept_state = SimState.create(back, (), name="1 cm after 2", anchor=two.x)
+    forgot, kept = solve_states(model, design, [fresh, kept_state], options=opts, warm_start=[two.x, two.x])
+    assert two.converged and forgot.converged and kept.converged
+    mid = idx[:, 1]
+    m_lame = PAPER.young_cloth / (2 * (1 + PAPER.poisson))
+    l_lame = PAPER.young_cloth * PAPER.poisson / (1 - PAPER.poisson**2)
+
+    def tension(x):
+        return _uniaxial_tension(np.linalg.norm(x[mid[1:]] - x[mid[:-1]], axis=1) / (R * np.pi / 48), m_lame, l_lame)
+
+    t2, t_forgot, t_kept = tension(two.x), tension(forgot.x), tension(kept.x)
+    inner = slice(2, 10)  # phi about 0.05 pi to 0.2 pi, near the held end: slid under 2 cm, not back
+    assert t2[inner].min() > 0 and t_kept[inner] == pytest.approx(t2[inner], rel=0.03)
+    assert (t_forgot[inner] < 0.8 * t2[inner]).all()
+    # towards the pulled end it slid back: friction reversed, the tension rising inwards
+    c = 0.5 * (kept.x[mid[1:]] + kept.x[mid[:-1]])
+    phi = np.unwrap(np.arctan2(c[:, 1], c[:, 0]))
+    a, b = 20, 40
+    assert t_kept[a] / t_kept[b] == pytest.approx(np.exp(0.3 * (phi[b] - phi[a])), rel=0.02)
+    assert kept.garment_energy.sum() < two.garment_energy.sum()  # J in the cloth: unloading
+    assert state_digest(kept_state) != state_digest(fresh)
+    assert state_digest(SimState.create(back, (), name="other")) == state_digest(fresh)
+    with pytest.raises(ValueError, match="friction anchor"):
+        solve_states(model, design, [SimState.create(back, (), anchor=two.x[:5])], options=opts)

@@ -33,7 +33,11 @@ less energy than the path's end, it replaces it and the frames before are re-sol
 backwards from it while that lowers their energy.  The report lists every frame
 re-solved.  With skin friction (``[materials] skin_friction``, :mod:`kgarment.sim.friction`)
 none is: the state then depends on the path taken, not on which equilibrium stores least,
-and the frames solved one after the other are that path.
+and the frames solved one after the other are that path.  Friction then holds each frame
+where the frame before left the garment, carried with the skin (:func:`carried`; the
+state's ``anchor``), not at the skin-tight garment: what slipped stays slipped, as Coulomb
+friction keeps no memory of where the garment started (the rest pose anchors at the
+skin-tight garment, and so does the first frame where the rest pose did not converge).
 """
 
 from __future__ import annotations
@@ -301,9 +305,9 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
     design = np.asarray(design, dtype=np.float64)
     names = [c.name for c in model.clutches]
 
-    def state(label: str, motion: str, s: str) -> SimState:
+    def state(label: str, motion: str, s: str, anchor: np.ndarray | None = None) -> SimState:
         g = setup.on_activation(motion) if s == "on" else np.zeros(setup.n_clutches)
-        return SimState.create(sim_motions[label], g, name=f"{label}[{s}]")
+        return SimState.create(sim_motions[label], g, name=f"{label}[{s}]", anchor=anchor)
 
     by_motion = {m: [(label, t) for label, mm, t in index if mm == m] for m in motions}
     if report is not None:
@@ -316,6 +320,10 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
                                                          for j in range(max(i - 2, 0), i)]
         return past[-2:]
 
+    def held(m: str, s: str, i: int) -> np.ndarray | None:  # where friction holds frame i (module doc)
+        past = before(m, s, i) if model.friction > 0.0 else []
+        return carried(model, *past[-1], sim_motions[by_motion[m][i][0]]) if past else None
+
     started = time.perf_counter()
     for i in range(frames):
         if report is not None:
@@ -323,7 +331,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
             eta = f", {time_left(spent, i, frames)}" if i else ""
             report(f"frame {i + 1}/{frames} (t = {(i + 1) / frames:.2f}{eta})")
         keys = [(m, s, i) for m in motions for s in STATES]
-        states = [state(by_motion[m][i][0], m, s) for m, s, _ in keys]
+        states = [state(by_motion[m][i][0], m, s, anchor=held(m, s, i)) for m, s, _ in keys]
         warm = [predicted(model, before(m, s, i), st.motion) for (m, s, _), st in zip(keys, states)]
         solved = setup.solve(design, states, warm_start=warm, options=setup.solver)
         retry = [j for j, r in enumerate(solved) if not r.converged]

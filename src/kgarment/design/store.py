@@ -130,11 +130,14 @@ def design_digest(design: np.ndarray) -> str:
 
 def state_digest(state: SimState) -> str:
     """A digest of what a state's equilibrium depends on besides the design: the posed
-    body, the skin-tight garment, its attachments and the clutch activation (not the name)."""
+    body, the skin-tight garment, its attachments, the clutch activation and the friction
+    anchor where the state has one (not the name)."""
     m = state.motion
     h = hashlib.blake2b(m.body.key.encode(), digest_size=12)
     for a in (m.garment_x0, m.attach_faces, m.attach_targets, np.asarray(state.activation, dtype=np.float64)):
         h.update(np.ascontiguousarray(a).tobytes())
+    if state.anchor is not None:  # skin friction held elsewhere than at the skin-tight garment
+        h.update(b"anchor" + np.ascontiguousarray(state.anchor, dtype=np.float64).tobytes())
     return h.hexdigest()
 
 

@@ -179,11 +179,14 @@ class StateProblem:
         self.m_garment = model.n_faces
         self.n_evals = 0
         # skin friction (sim.friction) on every vertex, the garment's and the clutches': anchors
-        # at the skin-tight start, the normal forces and normals lagged (set_friction), none
-        # until they are set
+        # at the state's (a motion's frame: the frame before's equilibrium) or at the skin-tight
+        # start, the normal forces and normals lagged (set_friction), none until they are set
         self.friction_on = model.friction > 0.0
         if self.friction_on:
-            x0 = self.initial_positions()
+            x0 = self.initial_positions() if state.anchor is None else np.asarray(state.anchor, dtype=np.float64)
+            if x0.shape != (model.n_vertices, 3):
+                raise ValueError(f"state {state.name}: friction anchor of shape {x0.shape}, expected "
+                                 f"({model.n_vertices}, 3)")
             self.fr_anchor, self.fr_strip = T(x0), strip_neighbours(model)
             self.fr_normal, self.fr_along = T(np.zeros_like(x0)), T(np.zeros_like(x0))
             self.fr_bound = T(np.zeros(len(x0)))

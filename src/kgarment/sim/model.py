@@ -306,11 +306,19 @@ def garment_motions(body, garment, names=None) -> dict[str, Motion]:
 
 @dataclass(frozen=True)
 class SimState:
-    """A motion under one clutch activation pattern: activation (K,) in [0, 1]."""
+    """A motion under one clutch activation pattern: activation (K,) in [0, 1].
+
+    anchor : (N, 3) where skin friction (``sim.friction``) holds each vertex, the garment's
+    and the clutches' (m), or None: the skin-tight garment, as if it had followed the skin
+    without slipping from the start.  A frame of a motion anchors at the frame before's
+    equilibrium carried with the skin (:func:`kgarment.design.path.carried`): what slipped
+    stays slipped, as Coulomb friction keeps no memory of where the garment started.
+    """
 
     name: str
     motion: Motion
     activation: tuple[float, ...] = ()
+    anchor: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     @property
     def clutched(self) -> bool:
@@ -318,8 +326,9 @@ class SimState:
         return any(a > 0 for a in self.activation)
 
     @staticmethod
-    def create(motion: Motion, activation, name: str | None = None) -> SimState:
+    def create(motion: Motion, activation, name: str | None = None, anchor: np.ndarray | None = None) -> SimState:
         g = tuple(float(a) for a in np.atleast_1d(np.asarray(activation, dtype=np.float64)))
         if name is None:
             name = f"{motion.name}[{','.join(f'{a:g}' for a in g)}]"
-        return SimState(name=name, motion=motion, activation=g)
+        return SimState(name=name, motion=motion, activation=g,
+                        anchor=None if anchor is None else np.asarray(anchor, dtype=np.float64))
