@@ -1,5 +1,5 @@
 """``[solver] path_start``: the design loop's ON states also solved over their motion from
-rest, that end kept where it is clearly lower (kgarment.design.path.motion_ends)."""
+rest, that end kept where it is clearly lower (kgarment.design.motion_start.motion_ends)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,8 @@ from tiny_problems import TINY_SLEEVE
 from kgarment.constants import PATH_START_FRAMES
 from kgarment.design.beso import design_values
 from kgarment.design.evaluate import MULTISTABLE
-from kgarment.design.path import PATH_FRAMES, motion_ends
+from kgarment.design.motion_start import motion_ends
+from kgarment.design.path import PATH_FRAMES
 from kgarment.design.setup import setup_from_problem
 from kgarment.errors import KgarmentError
 from kgarment.problem import build_clutches, build_garment, parse_problem

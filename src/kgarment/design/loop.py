@@ -175,7 +175,7 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     path_newton = 0
     checked = bool(setup.path_start) and st.iteration > 0 and st.iteration % setup.path_start == 0
     if checked:
-        from kgarment.design.path import motion_ends
+        from kgarment.design.motion_start import motion_ends
 
         results, path_newton = motion_ends(setup, st.design, keyed, results, opts)
     factor = log_stiffness_derivative(st.design, setup.model.preset) / setup.model.preset.penal

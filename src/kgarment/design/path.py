@@ -321,8 +321,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         return past[-2:]
 
     def held(m: str, s: str, i: int) -> np.ndarray | None:  # where friction holds frame i (module doc)
-        past = before(m, s, i) if model.friction > 0.0 else []
-        return carried(model, *past[-1], sim_motions[by_motion[m][i][0]]) if past else None
+        return held_at(model, before(m, s, i) if model.friction > 0.0 else [], sim_motions[by_motion[m][i][0]])
 
     started = time.perf_counter()
     for i in range(frames):
@@ -386,37 +385,11 @@ def carried(model, x: np.ndarray, before, after) -> np.ndarray:
     return x + model.initial_positions(after.garment_x0) - model.initial_positions(before.garment_x0)
 
 
-def motion_ends(setup, design: np.ndarray, keyed, results: list, options) -> tuple[list, int]:
-    """The design loop's motion start (``[solver] path_start``): each ON state of ``keyed``
-    ([(StateKey, SimState)]) solved over its motion from rest -- the frames of
-    ``setup.path_frames`` (the first from the skin-tight garment, each next one where the
-    frames before predict it, :func:`predicted`; all states' frame i in one batch), then the
-    target state itself from the last
-    frame -- and kept instead of ``results``' equilibrium (the same order) where converged and
-    lower by more than :data:`MULTISTABLE`.  Returns (the results, Newton iterations spent)."""
-    from kgarment.design.evaluate import Equilibrium, with_known
-
-    todo = [i for i, ((m, s), _) in enumerate(keyed) if s == "on" and m in setup.path_frames]
-    if not todo:
-        return results, 0
-    past: list[list] = [[] for _ in todo]  # per state: the frames' equilibria so far [(x, Motion)]
-    newton = 0
-    n = len(setup.path_frames[keyed[todo[0]][0][0]])  # every motion has as many frames
-    for f in range(n + 1):
-        states = [st if f == n else SimState.create(setup.path_frames[k[0]][f], st.activation, name=f"{st.name}@{f + 1}")
-                  for k, st in (keyed[i] for i in todo)]
-        warm = [predicted(setup.model_of(keyed[i][0][0]), p[-2:], st.motion) for i, p, st in zip(todo, past, states)]
-        solved = setup.solve(design, states, warm_start=warm, options=options)
-        newton += sum(r.convergence.iterations for r in solved)
-        for p, st, r in zip(past, states, solved):
-            p.append((r.x, st.motion))
-    out = list(results)
-    for i, end in zip(todo, solved):
-        if with_known(Equilibrium(out[i]), end).from_path:
-            log.info("%s: the motion from rest ends %.4g J below the design loop's equilibrium (%.4g J); "
-                     "going on from it", end.name, out[i].total_energy - end.total_energy, out[i].total_energy)
-            out[i] = end
-    return out, newton
+def held_at(model, past: list, motion) -> np.ndarray | None:
+    """Where skin friction holds a frame (the sim Motion ``motion``) of a motion solved from
+    rest: the last of ``past`` [(x (N, 3), sim Motion)] carried to it; None (the skin-tight
+    garment) without friction or before the first frame (module doc)."""
+    return carried(model, *past[-1], motion) if past and model.friction > 0.0 else None
 
 
 def _anchor_target(evaluator, design, motions, frames, by_motion, state, results) -> set:

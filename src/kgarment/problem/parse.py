@@ -348,17 +348,12 @@ def _balance(v) -> float | tuple[tuple[str, float], ...]:
     """[design] balance = w, or {MOTION = w, ...}: each w in the allowed range (the motions
     are checked against [motions] use in :func:`parse_problem`)."""
     lo, hi = C.DESIGN_RANGES["balance"]
-
-    def weight(w, where: str) -> float:
-        if isinstance(w, bool) or not isinstance(w, (int, float)) or not lo <= w <= hi:
-            raise KgarmentError(f"[design] balance{where} = {w!r}; allowed: a number in [{lo:g}, {hi:g}]")
-        return float(w)
-
+    allowed = f"a number in [{lo:g}, {hi:g}]"
     if isinstance(v, dict):
-        return tuple((str(m), weight(w, f": {m}")) for m, w in v.items())
-    if isinstance(v, (int, float)) and not isinstance(v, bool):
-        return weight(v, "")
-    raise KgarmentError(f"[design] balance = {v!r} must be a number in [{lo:g}, {hi:g}] (every motion) or a table "
+        return _table("balance", v, "weight", lambda w: lo <= w <= hi, allowed, "")
+    if isinstance(v, (int, float)) and not isinstance(v, bool) and lo <= v <= hi:
+        return float(v)
+    raise KgarmentError(f"[design] balance = {v!r} must be {allowed} (every motion) or a table "
                         'of motion = weight, e.g. { "arms_raise" = 2.0 }')
 
 

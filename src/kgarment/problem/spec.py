@@ -273,7 +273,7 @@ class SolverSpec:
     path_start : every ``path_start``-th design iteration (0: never) also solves each ON state
     over its motion from rest (``PATH_START_FRAMES`` frames, each from the one before, the
     last the target pose) and keeps that equilibrium where it is lower by more than 1%
-    (``kgarment.design.path.motion_ends``): the one a wearer reaches, which neither the
+    (``kgarment.design.motion_start.motion_ends``): the one a wearer reaches, which neither the
     warm-started path through the designs nor the skin-tight start need find (the two-motion
     sleeve at subdivision 1 turns ~36 degrees about the arm over flexion, 6.8 J against
     24.9 J).  The later iterations start from it.  Costs PATH_START_FRAMES solves per ON
