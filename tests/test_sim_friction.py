@@ -221,12 +221,15 @@ def test_a_taut_cable_round_the_body_presses_its_own_vertices_into_friction():
 def test_what_slipped_stays_slipped_where_friction_holds_the_frame_before():
     """The capstan band pulled 2 cm, then let back to 1 cm.  Anchored at the skin-tight
     garment (no memory) it is the band pulled 1 cm straight away: its tension falls from the
-    pulled end as exp(-mu phi) everywhere it slid.  Anchored where the 2 cm pull left it (a
-    motion's next frame, ``SimState.anchor``), the cloth near the pulled end slides back,
-    its tension now rising inwards as exp(mu phi); near the held end it sticks where it was,
-    with the 2 cm pull's tension (Coulomb hysteresis).  The anchor is part of the state's
-    digest (``design.store``)."""
+    pulled end as exp(-mu phi) everywhere it slid.  Held where the 2 cm pull left it (a
+    motion's next frame: ``sim.held_after`` as ``SimState.anchor``), the cloth near the
+    pulled end slides back, its tension now rising inwards as exp(mu phi); near the held
+    end it sticks where it was, with the 2 cm pull's tension (Coulomb hysteresis).  Holding
+    the 2 cm pose for another frame does not move it (no creep), where anchoring at the
+    equilibrium itself lets the stuck cloth give way by the skin's give.  The anchor is part
+    of the state's digest (``design.store``)."""
     from kgarment.design.store import state_digest
+    from kgarment.sim import held_after
 
     R, w = 0.05, 0.01
     v, faces, idx = _band(R, w, n_phi=48, n_z=2)
@@ -243,12 +246,15 @@ def test_what_slipped_stays_slipped_where_friction_holds_the_frame_before():
     model = dataclasses.replace(build_model(v, faces, preset="paper", friction=0.3), friction_slip=2e-5)
     design = np.full(len(faces), X_MIN)
     opts = SolverOptions(tol=1e-7, max_iter=400, friction_lags=12)
-    (two,) = solve_states(model, design, [SimState.create(pull("2 cm", 0.02), (), name="2 cm")], options=opts)
+    first = SimState.create(pull("2 cm", 0.02), (), name="2 cm")
+    (two,) = solve_states(model, design, [first], options=opts)
+    assert two.converged
+    anchor = held_after(model, design, first, two.x, opts)
     back = pull("1 cm", 0.01)
     fresh = SimState.create(back, (), name="1 cm")
-    kept_state = SimState.create(back, (), name="1 cm after 2", anchor=two.x)
-    forgot, kept = solve_states(model, design, [fresh, kept_state], options=opts, warm_start=[two.x, two.x])
-    assert two.converged and forgot.converged and kept.converged
+    kept_state = SimState.create(back, (), name="1 cm after 2", anchor=anchor)
+    forgot, kept = solve_states(model, design, [fresh, kept_state], options=opts, warm_start=[two.x] * 2)
+    assert forgot.converged and kept.converged
     mid = idx[:, 1]
     m_lame = PAPER.young_cloth / (2 * (1 + PAPER.poisson))
     l_lame = PAPER.young_cloth * PAPER.poisson / (1 - PAPER.poisson**2)
@@ -270,3 +276,56 @@ def test_what_slipped_stays_slipped_where_friction_holds_the_frame_before():
     assert state_digest(SimState.create(back, (), name="other")) == state_digest(fresh)
     with pytest.raises(ValueError, match="friction anchor"):
         solve_states(model, design, [SimState.create(back, (), anchor=two.x[:5])], options=opts)
+
+
+def test_a_pose_held_frame_after_frame_does_not_creep():
+    """The capstan band pulled 2 cm and held there for 6 more frames, each anchored where
+    the frame before left it (``sim.held_after``): it stays (its cloth's energy within
+    0.5%), where anchoring each frame at the equilibrium before lets the stuck cloth give
+    way by the skin's give every frame, so that the band creeps and its energy keeps
+    falling."""
+    from kgarment.sim import held_after
+
+    R, w = 0.05, 0.01
+    v, faces, idx = _band(R, w, n_phi=48, n_z=2)
+    held = np.arange(len(faces))[np.isin(faces, idx[:2].ravel()).all(1)]
+    pulled = np.arange(len(faces))[np.isin(faces, idx[-2:].ravel()).all(1)]
+    attach = np.concatenate([held, pulled])
+    targets = v[faces[attach]].mean(1)
+    targets[len(held):] += [0.0, -0.02, 0.0]
+    bv, bn, bf = cylinder_body(R, -0.05, 0.06, 180, 12)
+    motion = Motion.create("2 cm", v, bv, bn, attach, targets, bf, garment_faces=faces)
+    model = dataclasses.replace(build_model(v, faces, preset="paper", friction=0.3), friction_slip=1e-3)
+    design = np.full(len(faces), X_MIN)
+    opts = SolverOptions(tol=1e-7, max_iter=400, friction_lags=12)
+    state = SimState.create(motion, (), name="frame 0")
+    (r,) = solve_states(model, design, [state], options=opts)
+    energy = {"held": [r.garment_energy.sum()], "at x": [r.garment_energy.sum()]}
+    for how, series in energy.items():
+        st, x = state, r.x
+        for k in range(1, 7):
+            anchor = held_after(model, design, st, x, opts) if how == "held" else x
+            st = SimState.create(motion, (), name=f"frame {k}", anchor=anchor)
+            (res,) = solve_states(model, design, [st], options=opts, warm_start=[x])
+            assert res.converged
+            x = res.x
+            series.append(res.garment_energy.sum())
+    held_e, crept = np.array(energy["held"]), np.array(energy["at x"])
+    assert np.abs(held_e / held_e[0] - 1).max() < 5e-3
+    assert (np.diff(crept) < 0).all() and crept[-1] < 0.95 * crept[0]
+
+
+def test_the_return_map_keeps_what_stuck_and_moves_what_slid():
+    """``sim.friction.slid_anchor``: an offset within the give is kept; one beyond it is cut
+    to the give in its direction; the normal and strip components are free."""
+    from kgarment.sim.friction import slid_anchor
+
+    eps = 1e-3
+    n = np.array([[0.0, 0, 1]] * 3)
+    t = np.array([[0.0, 0, 0], [0, 0, 0], [1.0, 0, 0]])  # the third vertex on a strip along x
+    anchor = np.zeros((3, 3))
+    x = np.array([[5e-4, 0, 7e-3], [3e-3, 4e-3, 0], [9e-3, 2e-3, 0]])
+    got = slid_anchor(x, anchor, n, t, eps)
+    assert np.allclose(got[0], [0.0, 0, 7e-3])  # stuck: the tangential offset kept
+    assert np.allclose(x[1] - got[1], [0.6e-3, 0.8e-3, 0])  # slid 5 mm: held 1 mm behind
+    assert np.allclose(x[2] - got[2], [0.0, 1e-3, 0])  # across its strip 2 mm: held 1 mm behind

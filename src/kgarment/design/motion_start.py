@@ -30,17 +30,20 @@ def motion_ends(setup, design: np.ndarray, keyed, results: list, options) -> tup
     if not todo:
         return results, 0
     past: list[list] = [[] for _ in todo]  # per state: the frames' equilibria so far [(x, Motion)]
+    last: list = [None for _ in todo]  # per state: (SimState, x) of the frame before
     newton = 0
     n = len(setup.path_frames[keyed[todo[0]][0][0]])  # every motion has as many frames
     for f in range(n + 1):
-        states = [st if f == n else SimState.create(setup.path_frames[k[0]][f], st.activation, name=f"{st.name}@{f + 1}",
-                                                    anchor=held_at(setup.model_of(k[0]), p, setup.path_frames[k[0]][f]))
-                  for p, (k, st) in zip(past, (keyed[i] for i in todo))]
+        states = [st if f == n else SimState.create(
+            setup.path_frames[k[0]][f], st.activation, name=f"{st.name}@{f + 1}",
+            anchor=held_at(setup.model_of(k[0]), design, b, setup.path_frames[k[0]][f], options))
+                  for b, (k, st) in zip(last, (keyed[i] for i in todo))]
         warm = [predicted(setup.model_of(keyed[i][0][0]), p[-2:], st.motion) for i, p, st in zip(todo, past, states)]
         solved = setup.solve(design, states, warm_start=warm, options=options)
         newton += sum(r.convergence.iterations for r in solved)
         for p, st, r in zip(past, states, solved):
             p.append((r.x, st.motion))
+        last = [(st, r.x) for st, r in zip(states, solved)]
     out = list(results)
     for i, end in zip(todo, solved):
         if with_known(Equilibrium(out[i]), end).from_path:

@@ -34,10 +34,11 @@ backwards from it while that lowers their energy.  The report lists every frame
 re-solved.  With skin friction (``[materials] skin_friction``, :mod:`kgarment.sim.friction`)
 none is: the state then depends on the path taken, not on which equilibrium stores least,
 and the frames solved one after the other are that path.  Friction then holds each frame
-where the frame before left the garment, carried with the skin (:func:`carried`; the
-state's ``anchor``), not at the skin-tight garment: what slipped stays slipped, as Coulomb
-friction keeps no memory of where the garment started (the rest pose anchors at the
-skin-tight garment, and so does the first frame where the rest pose did not converge).
+where the frame before left the garment (:func:`held_at`, the state's ``anchor``), not at
+the skin-tight garment: what slid beyond the skin's give stays slid, as Coulomb friction
+keeps no memory of where the garment started, and what stuck keeps its offset, so that a
+frame does not let the garment creep (the rest pose anchors at the skin-tight garment, and
+so does the first frame where the rest pose did not converge).
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ from kgarment.design.evaluate import MULTISTABLE
 from kgarment.design.frames import REST, frame_motions
 from kgarment.errors import KgarmentError
 from kgarment.io import time_left
-from kgarment.sim import SimState, clutch_tensions
+from kgarment.sim import SimState, clutch_tensions, held_after
 from kgarment.sim.slip import slides
 
 log = logging.getLogger(__name__)
@@ -312,7 +313,9 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
     by_motion = {m: [(label, t) for label, mm, t in index if mm == m] for m in motions}
     if report is not None:
         report("rest pose (t = 0)")
-    rest = _rest_starts(evaluator, design, _rest_states(setup, motions, sim_motions))
+    rest_states = _rest_states(setup, motions, sim_motions)
+    rest = _rest_starts(evaluator, design, rest_states)
+    solved_states = {k: (rest_states[1][b][1], rest[k].x) for k, b in rest_states[0].items() if rest[k].converged}
     results: dict[tuple[str, str, int], object] = {}
 
     def before(m: str, s: str, i: int) -> list:  # the (up to two) equilibria frame i is predicted from
@@ -321,7 +324,8 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         return past[-2:]
 
     def held(m: str, s: str, i: int) -> np.ndarray | None:  # where friction holds frame i (module doc)
-        return held_at(model, before(m, s, i) if model.friction > 0.0 else [], sim_motions[by_motion[m][i][0]])
+        return held_at(model, design, solved_states.get((m, s, i - 1) if i else (m, s)),
+                       sim_motions[by_motion[m][i][0]], setup.solver)
 
     started = time.perf_counter()
     for i in range(frames):
@@ -341,6 +345,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
             for j, r in zip(retry, again):
                 solved[j] = r
         results.update(zip(keys, solved))
+        solved_states.update({k: (st, r.x) for k, st, r in zip(keys, states, solved)})
     resolved: set = set()
     if model.friction == 0.0:  # with skin friction the state depends on the history: the frames stand
         resolved = _anchor_target(evaluator, design, motions, frames, by_motion, state, results)
@@ -385,11 +390,16 @@ def carried(model, x: np.ndarray, before, after) -> np.ndarray:
     return x + model.initial_positions(after.garment_x0) - model.initial_positions(before.garment_x0)
 
 
-def held_at(model, past: list, motion) -> np.ndarray | None:
+def held_at(model, design: np.ndarray, before: tuple | None, motion, options) -> np.ndarray | None:
     """Where skin friction holds a frame (the sim Motion ``motion``) of a motion solved from
-    rest: the last of ``past`` [(x (N, 3), sim Motion)] carried to it; None (the skin-tight
-    garment) without friction or before the first frame (module doc)."""
-    return carried(model, *past[-1], motion) if past and model.friction > 0.0 else None
+    rest: after the frame before, ``before`` = (its SimState, its equilibrium x (N, 3)),
+    each vertex that slid is held the skin's give behind where it stands and each that stuck
+    keeps its offset (:func:`kgarment.sim.held_after`), carried with the skin to ``motion``;
+    None (the skin-tight garment) without friction or without a frame before (module doc)."""
+    if before is None or model.friction == 0.0:
+        return None
+    st, x = before
+    return carried(model, held_after(model, design, st, x, options), st.motion, motion)
 
 
 def _anchor_target(evaluator, design, motions, frames, by_motion, state, results) -> set:

@@ -45,6 +45,7 @@ from kgarment.sim.solve import (
     ConvergenceError,
     StateResult,
     evaluate_state,
+    held_after,
     prepare_state,
     solve_states,
 )
@@ -77,6 +78,7 @@ __all__ = [
     "garment_material",
     "garment_motions",
     "get_preset",
+    "held_after",
     "lame_plane_stress",
     "lbfgs_solve",
     "log_stiffness_derivative",

@@ -89,6 +89,23 @@ def friction(x: torch.Tensor, anchor: torch.Tensor, normal: torch.Tensor, bound:
     return e, grad, hess
 
 
+def slid_anchor(x: np.ndarray, anchor: np.ndarray, normal: np.ndarray, along: np.ndarray, eps: float) -> np.ndarray:
+    """Where friction holds each vertex after the equilibrium ``x`` (P, 3) reached held at
+    ``anchor`` (P, 3) (m): the return map of Coulomb friction with the skin's elastic give
+    ``eps`` (m).  A vertex whose tangential offset ``u`` (across its strip; ``normal`` and
+    ``along`` (P, 3) unit vectors as in :func:`friction`, ``along`` zero rows off strips)
+    exceeds ``eps`` slid: it is held ``eps`` behind where it stands, in the direction it
+    slid (the skin's give stays loaded, the slip beyond it is permanent); one within ``eps``
+    stuck and keeps its offset.  So a frame that repeats the pose finds the garment where it
+    was, under any force below the Coulomb bound (anchoring at ``x`` itself would let it
+    creep by the give at every frame).  Returns (P, 3) m."""
+    d = x - anchor
+    u = d - (d * normal).sum(1, keepdims=True) * normal - (d * along).sum(1, keepdims=True) * along
+    y = np.linalg.norm(u, axis=1)
+    keep = np.minimum(1.0, eps / np.maximum(y, 1e-300))
+    return x - u * keep[:, None]
+
+
 def normal_forces(elastic_grad: np.ndarray, normal: np.ndarray, f: np.ndarray, near: float) -> np.ndarray:
     """The lagged normal force (P,) N of each vertex (module doc): ``max(0, n . g)`` with
     ``g`` (P, 3) the gradient of every energy but contact and friction (N), ``normal``

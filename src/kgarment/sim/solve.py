@@ -13,9 +13,10 @@ from kgarment.sim.energy import SimulationError
 from kgarment.sim.model import SimModel, SimState
 from kgarment.sim.options import SolverOptions
 from kgarment.sim.parallel import solve_parallel
-from kgarment.sim.serial import StateResult, blas_threads, prepare_state, solve_serial
+from kgarment.sim.serial import StateResult, blas_threads, held_after, prepare_state, solve_serial
 
-__all__ = ["ConvergenceError", "StateResult", "blas_threads", "evaluate_state", "prepare_state", "solve_states"]
+__all__ = ["ConvergenceError", "StateResult", "blas_threads", "evaluate_state", "held_after", "prepare_state",
+           "solve_states"]
 
 log = logging.getLogger(__name__)
 
