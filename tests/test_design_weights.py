@@ -69,3 +69,12 @@ def test_weights_scale_the_objective_and_the_sensitivities():
     # product: the weight multiplies 1 / T (then scaled to mean 1)
     p = motion_weights("product", terms, shares)
     assert p["a"] / p["b"] == pytest.approx(2.5 * 0.2 / 0.3)
+
+
+def test_the_report_names_the_weights():
+    from kgarment.reproduce.report import early_note, weights_note
+
+    assert weights_note({}) == "" and weights_note({"weights": {}}) == ""
+    assert "(`[design] weights`: arm_extension.right 1.5; the others 1)" in weights_note(
+        {"weights": {"arm_extension.right": 1.5}})
+    assert early_note({"early": {"a": 0.33}}).endswith("(`[design] early`: a at 0.33 of its movement)")

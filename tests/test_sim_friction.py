@@ -84,6 +84,24 @@ def _band(radius, width, n_phi, n_z):
     return v, faces, idx
 
 
+def _pulled_band(R: float, w: float = 0.01):
+    """The band of :func:`_band` (48 x 2 cells) on a cylinder of radius R: (vertices,
+    faces, the vertex grid, pull(name, by) -> the sim Motion with the end at phi = 0 held
+    and the one at phi = pi pulled ``by`` metres along its tangent)."""
+    v, faces, idx = _band(R, w, n_phi=48, n_z=2)
+    held = np.arange(len(faces))[np.isin(faces, idx[:2].ravel()).all(1)]
+    pulled = np.arange(len(faces))[np.isin(faces, idx[-2:].ravel()).all(1)]
+    attach = np.concatenate([held, pulled])
+    bv, bn, bf = cylinder_body(R, -0.05, 0.06, 180, 12)
+
+    def pull(name: str, by: float):
+        targets = v[faces[attach]].mean(1)
+        targets[len(held):] += [0.0, -by, 0.0]  # at phi = pi the tangent (towards larger phi) is -y
+        return Motion.create(name, v, bv, bn, attach, targets, bf, garment_faces=faces)
+
+    return v, faces, idx, pull
+
+
 def _uniaxial_tension(stretch, mu, lam):
     """dW/dlambda of the relaxed (uniaxial) neo-Hookean membrane (method.md section 4):
     C = diag(l^2, 1/l), J = sqrt(l), W = mu/2 (l^2 + 1/l - 2) - mu ln J + lam/2 (ln J)^2."""
@@ -97,15 +115,9 @@ def test_a_band_pulled_round_a_cylinder_follows_the_capstan_equation(mu):
     2 cm along the tangent at the other: where it slides, its tension falls towards the held
     end as exp(-mu phi) over the angle it wraps (the capstan equation: pressure = tension /
     radius); frictionless it is the same everywhere."""
-    R, w = 0.05, 0.01
-    v, faces, idx = _band(R, w, n_phi=48, n_z=2)
-    held = np.arange(len(faces))[np.isin(faces, idx[:2].ravel()).all(1)]
-    pulled = np.arange(len(faces))[np.isin(faces, idx[-2:].ravel()).all(1)]
-    attach = np.concatenate([held, pulled])
-    targets = v[faces[attach]].mean(1)
-    targets[len(held):] += [0.0, -0.02, 0.0]  # at phi = pi the tangent (towards larger phi) is -y
-    bv, bn, bf = cylinder_body(R, -0.05, 0.06, 180, 12)
-    motion = Motion.create("pull", v, bv, bn, attach, targets, bf, garment_faces=faces)
+    R = 0.05
+    v, faces, idx, pull = _pulled_band(R)
+    motion = pull("pull", 0.02)
     model = build_model(v, faces, preset="paper", friction=mu)
     model = dataclasses.replace(model, friction_slip=2e-5)  # a stiff skin: sliding where the band moves
     state = SimState.create(motion, (), name="pull")
@@ -231,18 +243,8 @@ def test_what_slipped_stays_slipped_where_friction_holds_the_frame_before():
     from kgarment.design.store import state_digest
     from kgarment.sim import held_after
 
-    R, w = 0.05, 0.01
-    v, faces, idx = _band(R, w, n_phi=48, n_z=2)
-    held = np.arange(len(faces))[np.isin(faces, idx[:2].ravel()).all(1)]
-    pulled = np.arange(len(faces))[np.isin(faces, idx[-2:].ravel()).all(1)]
-    attach = np.concatenate([held, pulled])
-    bv, bn, bf = cylinder_body(R, -0.05, 0.06, 180, 12)
-
-    def pull(name, by):
-        targets = v[faces[attach]].mean(1)
-        targets[len(held):] += [0.0, -by, 0.0]
-        return Motion.create(name, v, bv, bn, attach, targets, bf, garment_faces=faces)
-
+    R = 0.05
+    v, faces, idx, pull = _pulled_band(R)
     model = dataclasses.replace(build_model(v, faces, preset="paper", friction=0.3), friction_slip=2e-5)
     design = np.full(len(faces), X_MIN)
     opts = SolverOptions(tol=1e-7, max_iter=400, friction_lags=12)
@@ -286,15 +288,8 @@ def test_a_pose_held_frame_after_frame_does_not_creep():
     falling."""
     from kgarment.sim import held_after
 
-    R, w = 0.05, 0.01
-    v, faces, idx = _band(R, w, n_phi=48, n_z=2)
-    held = np.arange(len(faces))[np.isin(faces, idx[:2].ravel()).all(1)]
-    pulled = np.arange(len(faces))[np.isin(faces, idx[-2:].ravel()).all(1)]
-    attach = np.concatenate([held, pulled])
-    targets = v[faces[attach]].mean(1)
-    targets[len(held):] += [0.0, -0.02, 0.0]
-    bv, bn, bf = cylinder_body(R, -0.05, 0.06, 180, 12)
-    motion = Motion.create("2 cm", v, bv, bn, attach, targets, bf, garment_faces=faces)
+    v, faces, _, pull = _pulled_band(0.05)
+    motion = pull("2 cm", 0.02)
     model = dataclasses.replace(build_model(v, faces, preset="paper", friction=0.3), friction_slip=1e-3)
     design = np.full(len(faces), X_MIN)
     opts = SolverOptions(tol=1e-7, max_iter=400, friction_lags=12)

@@ -335,19 +335,20 @@ def balance_note(e: dict) -> str:
     return f", clutch balance {where} (`[design] balance`: every clutch's own load path rewarded)"
 
 
+def _table_note(e: dict, key: str, item, words: str) -> str:
+    """The report's words for an experiment's ``[design] KEY`` table of motions ("" without
+    one): ``words`` with {} the items, each ``item(motion, value)``."""
+    table = e.get(key) or {}
+    return words.format(", ".join(item(m, v) for m, v in table.items())) if table else ""
+
+
 def early_note(e: dict) -> str:
     """The report's words for an experiment's ``[design] early`` poses ("" without any)."""
-    early = e.get("early") or {}
-    if not early:
-        return ""
-    parts = ", ".join(f"{m} at {t:g} of its movement" for m, t in early.items())
-    return f", also designed for the beginning of a motion (`[design] early`: {parts})"
+    return _table_note(e, "early", lambda m, t: f"{m} at {t:g} of its movement",
+                       ", also designed for the beginning of a motion (`[design] early`: {})")
 
 
 def weights_note(e: dict) -> str:
     """The report's words for an experiment's ``[design] weights`` ("" without any)."""
-    weights = e.get("weights") or {}
-    if not weights:
-        return ""
-    parts = ", ".join(f"{m} {w:g}" for m, w in weights.items())
-    return f", motions weighted in the objective (`[design] weights`: {parts}; the others 1)"
+    return _table_note(e, "weights", lambda m, w: f"{m} {w:g}",
+                       ", motions weighted in the objective (`[design] weights`: {}; the others 1)")
