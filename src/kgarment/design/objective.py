@@ -27,7 +27,7 @@ designed for its beginning too counts no more than one without.  Measured on the
 sleeve (docs/notes/design.md, "The selective sleeve's holding force and early pose").
 ``[design] weights = { MOTION = w }`` multiplies a motion's share (and its early poses') by
 w: the paper counts every motion equally, a designer may rank them (the selective sleeve's
-extension, docs/notes/design.md, "Motion weights").
+extension, docs/notes/selective.md, "Motion weights").
 
 How the motions combine (``[design] combine``, the active objective):
 
