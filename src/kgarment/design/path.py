@@ -315,7 +315,9 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         report("rest pose (t = 0)")
     rest_states = _rest_states(setup, motions, sim_motions)
     rest = _rest_starts(evaluator, design, rest_states)
-    solved_states = {k: (rest_states[1][b][1], rest[k].x) for k, b in rest_states[0].items() if rest[k].converged}
+    # (motion, state, frame): (SimState, equilibrium) of the frames solved, the rest pose as frame -1
+    solved_states = {(*k, -1): (rest_states[1][b][1], rest[k].x) for k, b in rest_states[0].items()
+                     if rest[k].converged}
     results: dict[tuple[str, str, int], object] = {}
 
     def before(m: str, s: str, i: int) -> list:  # the (up to two) equilibria frame i is predicted from
@@ -324,8 +326,8 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         return past[-2:]
 
     def held(m: str, s: str, i: int) -> np.ndarray | None:  # where friction holds frame i (module doc)
-        return held_at(model, design, solved_states.get((m, s, i - 1) if i else (m, s)),
-                       sim_motions[by_motion[m][i][0]], setup.solver)
+        return held_at(model, design, solved_states.get((m, s, i - 1)), sim_motions[by_motion[m][i][0]],
+                       setup.solver)
 
     started = time.perf_counter()
     for i in range(frames):

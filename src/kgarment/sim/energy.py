@@ -179,8 +179,8 @@ class StateProblem:
         self.m_garment = model.n_faces
         self.n_evals = 0
         # skin friction (sim.friction) on every vertex, the garment's and the clutches': anchors
-        # at the state's (a motion's frame: the frame before's equilibrium) or at the skin-tight
-        # start, the normal forces and normals lagged (set_friction), none until they are set
+        # at the state's (a motion's frame: where the frame before left it, held_after) or at the
+        # skin-tight start, the normal forces and normals lagged (set_friction), none until set
         self.friction_on = model.friction > 0.0
         if self.friction_on:
             x0 = self.initial_positions() if state.anchor is None else np.asarray(state.anchor, dtype=np.float64)

@@ -310,9 +310,10 @@ class SimState:
 
     anchor : (N, 3) where skin friction (``sim.friction``) holds each vertex, the garment's
     and the clutches' (m), or None: the skin-tight garment, as if it had followed the skin
-    without slipping from the start.  A frame of a motion anchors at the frame before's
-    equilibrium carried with the skin (:func:`kgarment.design.path.carried`): what slipped
-    stays slipped, as Coulomb friction keeps no memory of where the garment started.
+    without slipping from the start.  A frame of a motion anchors where the frame before
+    left the garment (:func:`kgarment.sim.held_after`, carried with the skin by
+    :func:`kgarment.design.path.carried`): what slid stays slid, as Coulomb friction keeps no
+    memory of where the garment started.
     """
 
     name: str

@@ -82,16 +82,18 @@ def prepare_state(model: SimModel, design: np.ndarray, state: SimState,
 def held_after(model: SimModel, design: np.ndarray, state: SimState, x: np.ndarray,
                options: SolverOptions | None = None) -> np.ndarray:
     """Where skin friction holds the garment after the equilibrium ``x`` (N, 3) of ``state``
-    (``sim.friction.slid_anchor`` with the contact normals and strip directions lagged at
-    ``x``; the state's anchor, or the skin-tight garment): the anchor of what comes next in
-    the same pose, (N, 3) m.  A motion's next frame carries it with the skin
+    (``sim.friction.slid_anchor`` from the state's own anchor, with the contact normals and
+    strip directions lagged at ``x``): the anchor of what comes next in the same pose, (N, 3)
+    m; the model must have friction.  A motion's next frame carries it with the skin
     (:func:`kgarment.design.path.carried`)."""
     from kgarment.sim.friction import slid_anchor
 
     prob = prepare_state(model, design, state, options)
+    if not prob.friction_on:
+        raise ValueError("held_after: the model has no skin friction (SimModel.friction is 0)")
     _, normal, along = prob.friction_lag(torch.as_tensor(np.asarray(x, dtype=np.float64), device=prob.device))
-    anchor = prob.initial_positions() if state.anchor is None else np.asarray(state.anchor, dtype=np.float64)
-    return slid_anchor(np.asarray(x, dtype=np.float64), anchor, normal, along, model.friction_slip)
+    return slid_anchor(np.asarray(x, dtype=np.float64), prob.fr_anchor.cpu().numpy(), normal, along,
+                       model.friction_slip)
 
 
 def blas_threads(threads: int | None):
