@@ -5,7 +5,7 @@ body's rest coordinates, so they fit any garment and subdivision level on that b
 
 =================  =====================================================================
 ``arm_flexion``    one 8 cm clutch over the outer (back of the) right elbow, taut (prestrain 0.9)
-``arm_extension``  one 8 cm clutch over the inside of the right elbow, onto the forearm
+``arm_extension``  one 8 cm clutch over the inside of the right elbow, onto the forearm, taut too
 ``sleeve``         both of the above (the flexion + extension sleeve)
 ``shirt``          13.5 cm across the upper back, two 10 cm on the lower back in a V
                    60 degrees from horizontal (the three-motion shirt)
@@ -22,7 +22,7 @@ from kgarment.clutch.landmarks import body_landmarks
 from kgarment.clutch.spec import ClutchSpec
 from kgarment.errors import unknown
 
-FLEXION_PRESTRAIN = 0.9  # the outer-elbow clutch's rest length over its laid length
+ELBOW_PRESTRAIN = 0.9  # an elbow clutch's rest length over its laid length (fitted taut)
 LAYOUTS = ("arm_flexion", "arm_extension", "sleeve", "shirt", "long_sleeve")
 
 
@@ -50,9 +50,13 @@ def _elbow(body: Body, L, side: str, which: str) -> ClutchSpec:
         # until the clutch lies over the hinge axis, where flexion hardly stretches it (measured:
         # ~20 degrees of turn, rho ON 0.13 at preview resolution; taut, 1.74)
         start = L[f"elbow_outer.{side}"] - 0.04 * upper
-        return ClutchSpec(f"elbow_outer.{side}", _pt(start), _pt(upper), 0.08, prestrain=FLEXION_PRESTRAIN)
+        return ClutchSpec(f"elbow_outer.{side}", _pt(start), _pt(upper), 0.08, prestrain=ELBOW_PRESTRAIN)
+    # taut as well: laid at its length (prestrain 1) the ON cable only takes load from a fifth of
+    # extension on (the cloth round its ends gives first); fitted as the outer clutch is, it
+    # pulls ~100 N at rest and resists from the start (extension alone, 800 N: rho ON 1.30 -> 1.65;
+    # the paper: 1.74; docs/notes/selective.md)
     start = L[f"elbow_inner.{side}"] - 0.03 * upper
-    return ClutchSpec(f"elbow_inner.{side}", _pt(start), _pt(upper), 0.08)
+    return ClutchSpec(f"elbow_inner.{side}", _pt(start), _pt(upper), 0.08, prestrain=ELBOW_PRESTRAIN)
 
 
 def _back(L) -> list[ClutchSpec]:
