@@ -201,6 +201,13 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
                     break
                 alpha, Et = 2.0 * alpha, E2
             xt = x + alpha * dxt
+        exact_next = strategy == "shifted" or (strategy == "adaptive" and alpha >= 1.0)
+        nxt = None
+        if accepted:
+            nxt = ahead if alpha == 1.0 and _finite(ahead) else prob.evaluate(xt, order=2, check=False,
+                                                                              exact=exact_next)
+            if not _derivatives_finite(nxt):  # finite energy but its derivatives blow up there (an element
+                accepted = False  # degenerating): a shorter, more damped step instead
         log.debug("newton %s it %d: E %.12g alpha %g shift %.1e exact %d residual %.3e", prob.name, it,
                   E, alpha if accepted else 0.0, tau if exact else mu, exact, fmax)
         if not accepted:
@@ -220,12 +227,9 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
             mu = max(mu * 0.1, opts.damping_min)
         elif alpha < 0.125:
             mu = mu * 10.0
-        exact = strategy == "shifted" or (strategy == "adaptive" and alpha >= 1.0)
+        exact = exact_next
         x = xt
-        if alpha == 1.0 and _finite(ahead):
-            E, g, H = ahead  # the same point and Hessian kind: no second evaluation
-        else:
-            E, g, H = prob.evaluate(x, order=2, exact=exact)
+        E, g, H = nxt  # the full step's come with it (the same point and Hessian kind)
     rec = Convergence(
         converged=converged, iterations=it, residual=history[-1], tolerance=tol_f,
         force_max=prob.max_force(g), grad_norm=float(torch.linalg.vector_norm(g)),
@@ -237,7 +241,12 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
 def _finite(ahead) -> bool:
     """Whether a trial evaluation (E, g, H) is usable as the next iterate's (else it is
     evaluated again with checks, which name the term that failed)."""
-    return ahead is not None and bool(torch.isfinite(ahead[1]).all()) and bool(np.isfinite(ahead[2]).all())
+    return ahead is not None and _derivatives_finite(ahead)
+
+
+def _derivatives_finite(e) -> bool:
+    """Whether an evaluation (E, g, H)'s gradient and Hessian are finite."""
+    return bool(torch.isfinite(e[1]).all()) and bool(np.isfinite(e[2]).all())
 
 
 def _solve(linsolver: SparseCholesky, H: np.ndarray, rhs: np.ndarray, shift: np.ndarray) -> np.ndarray | None:
