@@ -53,7 +53,7 @@ def _elbow(body: Body, L, side: str, which: str) -> ClutchSpec:
         return ClutchSpec(f"elbow_outer.{side}", _pt(start), _pt(upper), 0.08, prestrain=ELBOW_PRESTRAIN)
     # taut as well: laid at its length (prestrain 1) the ON cable only takes load from a fifth of
     # extension on (the cloth round its ends gives first); fitted as the outer clutch is, it
-    # pulls ~100 N at rest and resists from the start (extension alone, 800 N: rho ON 1.30 -> 1.65;
+    # pulls 24-103 N at rest and resists from the start (extension alone, 800 N: rho ON 1.30 -> 1.65;
     # the paper: 1.74; docs/notes/selective.md)
     start = L[f"elbow_inner.{side}"] - 0.03 * upper
     return ClutchSpec(f"elbow_inner.{side}", _pt(start), _pt(upper), 0.08, prestrain=ELBOW_PRESTRAIN)

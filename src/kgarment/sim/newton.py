@@ -229,7 +229,7 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
             mu = mu * 10.0
         exact = exact_next
         x = xt
-        E, g, H = nxt  # the full step's come with it (the same point and Hessian kind)
+        E, g, H = nxt  # the accepted point's derivatives (the Hessian kind of the next step)
     rec = Convergence(
         converged=converged, iterations=it, residual=history[-1], tolerance=tol_f,
         force_max=prob.max_force(g), grad_norm=float(torch.linalg.vector_norm(g)),
@@ -239,8 +239,8 @@ def newton_solve(prob: StateProblem, x0: np.ndarray, opts: SolverOptions,
 
 
 def _finite(ahead) -> bool:
-    """Whether a trial evaluation (E, g, H) is usable as the next iterate's (else it is
-    evaluated again with checks, which name the term that failed)."""
+    """Whether the full step's trial evaluation (E, g, H) is usable as the next iterate's
+    (else the accepted point is evaluated again)."""
     return ahead is not None and _derivatives_finite(ahead)
 
 
