@@ -444,3 +444,37 @@ def test_a_solve_that_runs_out_of_iterations_is_rescued_from_where_it_stopped():
     (r,) = solve_states(model, d, [state], options=SolverOptions(max_iter=n - 1))
     assert r.converged and n - 1 < r.convergence.iterations <= 2 * (n - 1)
     assert r.total_energy == pytest.approx(full.total_energy, rel=1e-8)
+
+
+def test_a_step_onto_non_finite_derivatives_is_refused_not_raised(monkeypatch):
+    """Where the full step lands on finite energy but a non-finite Hessian (an element
+    degenerating there), Newton takes a shorter, damped step instead of raising, and still
+    reaches the equilibrium it reaches without the fault (the first 3 full-step trials
+    poisoned)."""
+    from kgarment.sim import energy
+
+    model, motion = tube_scene("paper")
+    state = SimState.create(motion, [1.0])
+    d = np.full(model.n_faces, 1.0)  # all reinforced: no slack cloth, one equilibrium
+    opts = SolverOptions(tol=1e-6)
+    clean = solve_states(model, d, [state], options=opts)[0]
+    real = energy.StateProblem.evaluate
+    poisoned = {"left": 3, "points": []}
+
+    def evaluate(self, x, order=0, check=True, exact=False):
+        E, g, H = real(self, x, order=order, check=False, exact=exact)
+        if order == 2 and not check and poisoned["left"] > 0:  # a full-step trial point
+            poisoned["left"] -= 1
+            poisoned["points"].append(x.clone())
+        if order == 2 and any(torch.equal(x, p) for p in poisoned["points"]):
+            H = np.full_like(H, np.nan)  # the Hessian there, whoever asks
+            if check:  # what the real check does
+                raise energy.SimulationError(f"state {self.name!r}: non-finite Hessian")
+        return E, g, H
+
+    monkeypatch.setattr(energy.StateProblem, "evaluate", evaluate)
+    faulty = solve_states(model, d, [state], options=opts)[0]
+    assert poisoned["left"] == 0  # the fault was met
+    assert clean.converged and faulty.converged
+    assert faulty.total_energy == pytest.approx(clean.total_energy, rel=1e-6)
+    assert np.abs(faulty.x - clean.x).max() < 1e-3 * model.mean_edge
