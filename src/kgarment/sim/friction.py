@@ -54,6 +54,18 @@ import numpy as np
 import torch
 
 
+def tangential_slip(x: torch.Tensor, anchor: torch.Tensor, normal: torch.Tensor,
+                    along: torch.Tensor | None = None) -> torch.Tensor:
+    """The slip (P, 3) m that friction resists: ``x - anchor`` less its part along ``normal``
+    and, where given, along ``along`` (the free slide along a strip); arguments as in
+    :func:`friction`."""
+    d = x - anchor
+    u = d - (d * normal).sum(1, keepdim=True) * normal
+    if along is not None:
+        u = u - (d * along).sum(1, keepdim=True) * along
+    return u
+
+
 def friction(x: torch.Tensor, anchor: torch.Tensor, normal: torch.Tensor, bound: torch.Tensor, eps: float,
              order: int = 0, along: torch.Tensor | None = None):
     """The smoothed Coulomb potential per vertex (module doc).
@@ -64,10 +76,7 @@ def friction(x: torch.Tensor, anchor: torch.Tensor, normal: torch.Tensor, bound:
     (a strip's vertices: its length), zero rows for none; None: none anywhere.
     Returns energy (P,) J, gradient (P, 3) N or None and Hessian (P, 3, 3) N/m or None.
     """
-    d = x - anchor
-    u = d - (d * normal).sum(1, keepdim=True) * normal  # tangential slip (P, 3)
-    if along is not None:
-        u = u - (d * along).sum(1, keepdim=True) * along  # less the free slide along a strip
+    u = tangential_slip(x, anchor, normal, along)
     y = torch.linalg.vector_norm(u, dim=1)
     stick = y < eps
     e = bound * torch.where(stick, -y**3 / (3.0 * eps**2) + y**2 / eps + eps / 3.0, y)
@@ -99,8 +108,7 @@ def slid_anchor(x: np.ndarray, anchor: np.ndarray, normal: np.ndarray, along: np
     stuck and keeps its offset.  So a frame that repeats the pose finds the garment where it
     was, under any force below the Coulomb bound (anchoring at ``x`` itself would let it
     creep by the give at every frame).  Returns (P, 3) m."""
-    d = x - anchor
-    u = d - (d * normal).sum(1, keepdims=True) * normal - (d * along).sum(1, keepdims=True) * along
+    u = tangential_slip(*(torch.as_tensor(np.asarray(a, dtype=np.float64)) for a in (x, anchor, normal, along))).numpy()
     y = np.linalg.norm(u, axis=1)
     keep = np.minimum(1.0, eps / np.maximum(y, 1e-300))
     return x - u * keep[:, None]
