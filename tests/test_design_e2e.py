@@ -92,6 +92,13 @@ def test_the_run_and_the_evaluator_agree(runs, anny_body):
     assert [s.row() for s in one.states] == [s.row() for s in res.states]
     with pytest.raises(KgarmentError, match="design has"):
         ev.evaluate(design[:-1])
+    # the final evaluation says, per motion, the run's rho ON at the reported iteration beside its own
+    doc = json.loads((lib / "final" / "evaluation.json").read_text())
+    run_row, on = rows[doc["iteration"]], {m: r["on"] for m, r in doc["rho"].items()}
+    assert set(doc["along_run"]) == set(on)
+    for m, v in doc["along_run"].items():
+        assert v["run"] == pytest.approx(run_row[f"rho[{m}:on]"]) and v["evaluated"] == pytest.approx(on[m])
+        assert v["reached"]  # the tiny sleeve's run ends where the evaluator's starts end (rho 0.955 / 0.889)
 
 
 def test_force_over_the_motion(runs, anny_body, capsys):

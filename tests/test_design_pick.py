@@ -48,3 +48,26 @@ def test_the_motion_from_rest_replaces_the_two_starts_only_where_clearly_lower()
     unconverged = Equilibrium(result(5.0, converged=False, residual=0.2))
     e = with_known(unconverged, result(9.0))
     assert e.result.total_energy == 9.0 and e.from_path and e.other is None
+
+
+def test_a_final_design_whose_run_equilibrium_the_evaluator_does_not_reach_is_flagged():
+    """``along_run``: per motion, the run's rho ON at the reported iteration against the
+    evaluator's; "reached" where the evaluated one is at least (1 - UNREACHED) of the run's
+    (the selective sleeve's flexion: 1.093 along the run, 0.563 evaluated).  OFF and lock
+    states, and motions the row does not hold, are left out."""
+    from kgarment.design.driver import UNREACHED, along_run
+    from kgarment.design.evaluate import DesignEvaluation, StateEvaluation
+
+    def state(motion, kind, rho):
+        return StateEvaluation(motion, kind, rho, rho, 1.0, True)
+
+    res = DesignEvaluation(np.ones(4, bool), (
+        state("flex", "on", 0.563), state("flex", "off", 0.01), state("flex", "lock:ext", 0.04),
+        state("ext", "on", (1 - UNREACHED) * 1.066 + 1e-9), state("ext", "off", 0.01),
+        state("raise", "on", 2.0)), 0.2, 3, 1, 4, 4)
+    row = {"rho[flex:on]": 1.093, "rho[flex:off]": 0.009, "rho[ext:on]": 1.066}
+    out = along_run(row, res)
+    assert set(out) == {"flex", "ext"}
+    assert out["flex"] == {"run": 1.093, "evaluated": 0.563, "reached": False}
+    assert out["ext"]["reached"] and out["ext"]["run"] == 1.066
+    assert along_run(row, res)["ext"]["reached"] and not along_run({"rho[ext:on]": 1.3}, res)["ext"]["reached"]
