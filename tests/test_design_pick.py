@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from kgarment.design.evaluate import MULTISTABLE, pick_equilibrium
 from kgarment.sim import Convergence, StateResult
@@ -50,24 +51,78 @@ def test_the_motion_from_rest_replaces_the_two_starts_only_where_clearly_lower()
     assert e.result.total_energy == 9.0 and e.from_path and e.other is None
 
 
+
+def _evaluation(rhos: dict[str, float], off: float = 0.01):
+    """A DesignEvaluation with rho ON ``rhos[motion]`` and OFF ``off`` (energies = rho, full = 1)."""
+    from kgarment.design.evaluate import DesignEvaluation, StateEvaluation
+
+    states = []
+    for m, rho in rhos.items():
+        states += [StateEvaluation(m, "on", rho, rho, 1.0, True), StateEvaluation(m, "off", off, off, 1.0, True)]
+    return DesignEvaluation(np.ones(4, bool), tuple(states), 0.2, 3, 1, 4, 4)
+
+
 def test_a_final_design_whose_run_equilibrium_the_evaluator_does_not_reach_is_flagged():
     """``along_run``: per motion, the run's rho ON at the reported iteration against the
     evaluator's; "reached" where the evaluated one is at least (1 - UNREACHED) of the run's
     (the selective sleeve's flexion: 1.093 along the run, 0.563 evaluated).  OFF and lock
     states, and motions the row does not hold, are left out."""
-    from kgarment.design.driver import UNREACHED, along_run
-    from kgarment.design.evaluate import DesignEvaluation, StateEvaluation
+    from kgarment.design.reported import UNREACHED, along_run
 
-    def state(motion, kind, rho):
-        return StateEvaluation(motion, kind, rho, rho, 1.0, True)
-
-    res = DesignEvaluation(np.ones(4, bool), (
-        state("flex", "on", 0.563), state("flex", "off", 0.01), state("flex", "lock:ext", 0.04),
-        state("ext", "on", (1 - UNREACHED) * 1.066 + 1e-9), state("ext", "off", 0.01),
-        state("raise", "on", 2.0)), 0.2, 3, 1, 4, 4)
+    res = _evaluation({"flex": 0.563, "ext": (1 - UNREACHED) * 1.066 + 1e-9, "raise": 2.0})
     row = {"rho[flex:on]": 1.093, "rho[flex:off]": 0.009, "rho[ext:on]": 1.066}
     out = along_run(row, res)
     assert set(out) == {"flex", "ext"}
     assert out["flex"] == {"run": 1.093, "evaluated": 0.563, "reached": False}
     assert out["ext"]["reached"] and out["ext"]["run"] == 1.066
-    assert along_run(row, res)["ext"]["reached"] and not along_run({"rho[ext:on]": 1.3}, res)["ext"]["reached"]
+    assert not along_run({"rho[ext:on]": 1.3}, res)["ext"]["reached"]
+
+
+def _rows(objectives: dict[int, float], area: float = 0.2):
+    """Metrics rows: iterations 0..n, the given ones at the target area (0.2) with these
+    objectives and rho ON 1.0 in motion "m", the others above it."""
+    n = max(objectives) + 1
+    return [{"iteration": k, "area": area if k in objectives else 0.5, "objective": objectives.get(k, 9.0),
+             "unconverged_states": "", "rho[m:on]": 1.0} for k in range(n)]
+
+
+def test_the_reported_iteration_is_the_best_objective_the_evaluator_reproduces():
+    """``select_reported``: candidates in order of the run's objective; the first whose
+    evaluated rho ON keeps (1 - UNREACHED) of the run's is reported, after as many
+    evaluations as it took; none of the first CANDIDATES reproduced: the best evaluated
+    objective among them (an iteration above the target area is never a candidate)."""
+    from types import SimpleNamespace
+
+    from kgarment.design.reported import CANDIDATES, select_reported
+
+    setup = SimpleNamespace(objective="active", lockout=0.0, combine="sum")
+    rows = _rows({3: 0.50, 4: 0.49, 5: 0.48, 6: 0.47, 7: 0.46, 8: 0.45})
+    asked = []
+
+    def evaluate(rho_of):
+        def ev(k):
+            asked.append(k)
+            return _evaluation({"m": rho_of.get(k, 1.0)})
+        return ev
+
+    # the best is reproduced: one evaluation, as before this check
+    r = select_reported(rows, 0.2, 0.03, setup, evaluate({}))
+    assert (r.iteration, r.reproduced, asked) == (3, True, [3])
+    # the best two are not (0.56 of 1.0): the third is reported, after three evaluations
+    asked.clear()
+    r = select_reported(rows, 0.2, 0.03, setup, evaluate({3: 0.56, 4: 0.6}))
+    assert (r.iteration, r.reproduced, asked) == (5, True, [3, 4, 5])
+    assert [t["reached"] for t in r.tried] == [False, False, True]
+    assert r.tried[0]["along_run"]["m"] == {"run": 1.0, "evaluated": 0.56, "reached": False}
+    assert r.tried[0]["evaluated_objective"] == pytest.approx(0.56 - 0.01)  # (E_ON - E_OFF) / E_full
+    # none of the first CANDIDATES is: the one of the highest evaluated objective
+    asked.clear()
+    low = {k: 0.3 + 0.01 * k for k in range(3, 9)}
+    low[4] = 0.7
+    r = select_reported(rows, 0.2, 0.03, setup, evaluate(low))
+    assert asked == [3, 4, 5, 6][:CANDIDATES] and (r.iteration, r.reproduced) == (4, False)
+    assert r.evaluation.get("m", "on").rho == 0.7
+    # no iteration at the target area: the last one, evaluated
+    asked.clear()
+    r = select_reported(_rows({2: 0.5}, area=0.5), 0.2, 0.03, setup, evaluate({}))
+    assert (r.iteration, asked) == (2, [2])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -218,6 +219,15 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
         for kind in ("manual", "random"):
             for r in ev[kind] if kind == "random" else [ev[kind]]:
                 assert abs(r["area"] - e["budget"]) < 0.01
+        # ours ends as kgarment design does: the reported iteration is the run's final one, which
+        # the evaluator reproduces (or the best as evaluated), and its evaluation the same numbers
+        folder = Path(e["run"]["folder"])
+        final = json.loads(((folder if folder.is_absolute() else tmp_path / folder) / "final"
+                            / "evaluation.json").read_text())
+        assert e["run"]["reported_iteration"] == final["iteration"] == final["selection"]["iteration"]
+        for r in ev["ours"]["rows"]:  # where the motion from rest did not end lower (the reproduction's --path)
+            if not r["from_path"]:
+                assert r["rho"] == pytest.approx(final["rho"][r["motion"]][r["state"]], rel=1e-9)
     cross = doc["cross"]["sleeve"]
     assert set(cross["rho_on"]) == {"arm_flexion.right", "arm_extension.right"}
     assert set(cross["rho_on"]["arm_flexion.right"]) == {"arm_extension.right", "all"}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import json
 import time
 from pathlib import Path
 
@@ -69,9 +70,15 @@ def print_summary(dr, seconds: float) -> None:
 
         k = final_iteration(dr.run)
         checked = dr.setup.path_start > 0
-        print(f"final design: iteration {k} (the best objective at the target area"
-              + (" among the iterations solved over the motion" if checked else "") + "), evaluated like "
-              f"kgarment evaluate {dr.run}" + (f" --path {PATH_FRAMES}" if checked else "") + ":")
+        sel = json.loads((dr.run / "final" / "evaluation.json").read_text()).get("selection", {})
+        tried = sel.get("candidates", [])
+        how = ("the best objective at the target area" + (" among the iterations solved over the motion"
+                                                           if checked else ""))
+        if len(tried) > 1:
+            how += (f" that the evaluator reproduces; {len(tried) - 1} better one(s) not" if sel.get("reproduced") else
+                    f"; the evaluator reproduces none of the {len(tried)} best, this one is the best as evaluated")
+        print(f"final design: iteration {k} ({how}), evaluated like kgarment evaluate {dr.run}"
+              + (f" --path {PATH_FRAMES}" if checked else "") + ":")
         print_evaluation(dr.evaluation)
     print(f"results in {dr.run}/: metrics.csv, metrics.json, progress.png, designs.npz, final/")
     for path in dr.paths:

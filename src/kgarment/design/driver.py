@@ -31,6 +31,7 @@ from kgarment.design.loads import load_chart
 from kgarment.design.loop import LoopState, initial_state, iterate, run_loop
 from kgarment.design.refine import coarse_levels, run_coarse, transfer
 from kgarment.design.report import finish_run
+from kgarment.design.reported import select_reported
 from kgarment.design.run import (
     best_iteration,
     check_model,
@@ -56,7 +57,6 @@ from kgarment.problem import (
 
 log = logging.getLogger(__name__)
 ATTACHMENTS = "attachments.npz"
-UNREACHED = 0.2  # a motion's rho ON evaluated this much (relative) below the run's own is reported
 
 
 @dataclass(frozen=True)
@@ -153,11 +153,14 @@ def _with_attachments(garment: Garment, path: Path) -> Garment:
 
 
 def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
-           cancelled: Callable[[], bool] | None = None, final: bool = True, evaluate: bool = True) -> DesignRun:
+           cancelled: Callable[[], bool] | None = None, final: bool = True, evaluate: bool = True,
+           evaluator: Evaluator | None = None) -> DesignRun:
     """Iterate to the end (checkpoint after every iteration), then (``final``) write the
-    final design -- the best iteration at the target area (:func:`kgarment.design.run.best_iteration`)
-    -- and its renders into ``dr.run / "final"`` and (``evaluate``) evaluate it with the one
-    design evaluator (:func:`evaluate_final`).
+    final design and its renders into ``dr.run / "final"``: with ``evaluate`` the best
+    iteration at the target area that the one design evaluator reproduces, evaluated
+    (:func:`evaluate_final`; ``evaluator``: the Evaluator to use, e.g. the reproduction's with
+    its shared store; default: one with the run's store), else the best iteration at the
+    target area (:func:`kgarment.design.run.best_iteration`).
 
     progress(state) after every iteration (its checkpoint is already written);
     cancelled() is checked after every iteration and raises :class:`Cancelled` (the run
@@ -180,8 +183,10 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
     if not final:
         return dr
     p = dr.setup.params
-    k = best_iteration(st.metrics, p.target_area, p.er)
-    evaluation, paths = evaluate_final(dr, k) if evaluate else (None, [])
+    if evaluate:
+        k, evaluation, paths = evaluate_final(dr, evaluator=evaluator)
+    else:
+        k, evaluation, paths = best_iteration(st.metrics, p.target_area, p.er), None, []
     equilibria = None if evaluation is None else {s.key: s.result for s in evaluation.states}
     paths = finish_run(dr.run, dr.setup, st, dr.body, dr.garment, list(dr.strips), k, equilibria) + paths
     return dataclasses.replace(dr, paths=tuple(paths), evaluation=evaluation)
@@ -233,50 +238,42 @@ def check_control(dr: DesignRun, st: LoopState, folder: Path | None = None) -> l
     return controls
 
 
-def evaluate_final(dr: DesignRun, iteration: int) -> tuple[DesignEvaluation, list[Path]]:
-    """The final design (of ``iteration``) evaluated like ``kgarment evaluate RUN`` (the one
-    design evaluator, per-clutch loads included): ``final/evaluation.json`` and
+def evaluate_final(dr: DesignRun, evaluator: Evaluator | None = None) -> tuple[int, DesignEvaluation, list[Path]]:
+    """The final design evaluated like ``kgarment evaluate RUN`` (the one design evaluator,
+    per-clutch loads included): the best iteration at the target area that the evaluator
+    reproduces (:func:`kgarment.design.reported.select_reported`), written with how it was
+    chosen to ``final/evaluation.json`` (``iteration``, ``along_run``: each motion's rho ON
+    along the run beside the evaluator's, ``selection``: the candidates evaluated) and
     ``final/clutch_loads.png``.  These, not the metrics rows (solved warm along the run's
     path, to the design tolerance), are the run's final numbers.  A run with ``[solver]
     path_start`` is evaluated like ``kgarment evaluate RUN --path 10`` (the motion's end a
-    start; its force over the motion under ``path`` in the JSON)."""
-    ev = Evaluator(setup_from_problem(dr.problem, dr.body, dr.garment, dr.strips, "evaluate", dr.setup.solver.device),
-                   run_store(dr.run))  # kgarment evaluate / plan RUN take them from there
-    design = design_values(dr.state.designs[iteration])
-    path = None
-    if dr.setup.path_start:  # a run that designs against the motion is judged by it: --path's numbers
-        from kgarment.design.path import PATH_FRAMES, path_forces
+    start; its force over the motion under ``path`` in the JSON).  Returns (the iteration,
+    its evaluation, the files written)."""
+    ev = evaluator or Evaluator(setup_from_problem(dr.problem, dr.body, dr.garment, dr.strips, "evaluate",
+                                                   dr.setup.solver.device),
+                                run_store(dr.run))  # kgarment evaluate / plan RUN take them from there
+    paths_of: dict[int, object] = {}
 
-        path = path_forces(ev, design, dr.problem, frames=PATH_FRAMES)
-    res = ev.evaluate(design, loads=True, known=None if path is None else path.ends)
-    run_rho = along_run(dr.state.metrics[iteration], res)
-    for m, v in run_rho.items():
-        if not v["reached"]:
-            log.warning("%s: the final design's rho ON is %.3g as evaluated, %.3g along the run: the run's "
-                        "equilibrium is not the one the evaluator reaches from the garment as put on%s", m,
-                        v["evaluated"], v["run"], "" if path is not None else
-                        " ([solver] path_start designs against the motion from rest; README, \"Design runs\")")
-    doc = {"run": str(dr.run), "iteration": iteration, **res.to_json(), "along_run": run_rho,
+    def candidate(k: int) -> DesignEvaluation:
+        design = design_values(dr.state.designs[k])
+        path = None
+        if dr.setup.path_start:  # a run that designs against the motion is judged by it: --path's numbers
+            from kgarment.design.path import PATH_FRAMES, path_forces
+
+            path = paths_of[k] = path_forces(ev, design, dr.problem, frames=PATH_FRAMES)
+        return ev.evaluate(design, loads=False, known=None if path is None else path.ends)
+
+    p = dr.setup.params
+    chosen = select_reported(dr.state.metrics, p.target_area, p.er, dr.setup, candidate)
+    k, path = chosen.iteration, paths_of.get(chosen.iteration)
+    # the loads of the chosen one (its states are solved: the evaluator's store gives them back)
+    res = ev.evaluate(design_values(dr.state.designs[k]), loads=True, known=None if path is None else path.ends)
+    along = {t["iteration"]: t["along_run"] for t in chosen.tried}[k]
+    doc = {"run": str(dr.run), "iteration": k, **res.to_json(), "along_run": along, "selection": chosen.to_json(),
            **({} if path is None else {"path": path.to_json()})}
     paths = [atomic_write_text(dr.run / "final" / "evaluation.json", json_text(doc))]
     if res.loads is not None:
         paths.append(load_chart(res.loads, dr.run / "final" / "clutch_loads.png",
                                 f"{dr.garment.name}: clutch loads of the final design"))
-    return res, paths
+    return k, res, paths
 
-
-def along_run(row: dict, res: DesignEvaluation) -> dict[str, dict]:
-    """Per motion of ``res`` whose ON state the run's metrics ``row`` (the reported
-    iteration's) also hold: {"run": rho ON along the run (warm from the iteration before, to
-    the design tolerance), "evaluated": the evaluator's, "reached": the evaluated one is at
-    least (1 - :data:`UNREACHED`) of the run's}.  A design whose run found a higher
-    equilibrium than any the evaluator reaches was designed for a state a wearer may not be
-    in (measured on the selective sleeve, docs/notes/selective.md: flexion 1.09 along the run,
-    0.56 evaluated, 0.59 over the motion from rest)."""
-    out = {}
-    for s in res.states:
-        key = f"rho[{s.motion}:on]"
-        if s.state == "on" and key in row:
-            out[s.motion] = {"run": float(row[key]), "evaluated": float(s.rho),
-                             "reached": bool(s.rho >= (1.0 - UNREACHED) * float(row[key]))}
-    return out

@@ -114,11 +114,19 @@ def best_iteration(rows, target: float, er: float) -> int:
     rest count (``path_checked``): the others' objectives may be of an equilibrium the wearer
     never reaches (measured on the two-motion sleeve at subdivision 1: the best objective at
     an unchecked iteration, rho ON 1.03 in flexion, was 0.11 over the motion)."""
+    ranked = ranked_iterations(rows, target, er)
+    return ranked[0] if ranked else int(rows[-1]["iteration"])
+
+
+def ranked_iterations(rows, target: float, er: float) -> list[int]:
+    """The iterations :func:`best_iteration` chooses from, highest objective first (ties:
+    the earlier iteration first); empty when none is at the target area with every state
+    converged."""
     ok = [r for r in rows if target_reached(r["area"], target, er) and not r["unconverged_states"]
           and not r.get("rejected")]
     if any(r.get("path_checked") for r in ok):
         ok = [r for r in ok if r.get("path_checked")]
-    return int(max(ok, key=lambda r: r["objective"])["iteration"]) if ok else int(rows[-1]["iteration"])
+    return [int(r["iteration"]) for r in sorted(ok, key=lambda r: (-r["objective"], r["iteration"]))]
 
 
 def final_iteration(run) -> int:

@@ -30,7 +30,7 @@ import numpy as np
 
 from kgarment.design import design_values, finish, load_design_history, open_run, run_status
 from kgarment.design.beso import expected_iterations
-from kgarment.design.run import best_iteration
+from kgarment.design.run import best_iteration, final_iteration
 from kgarment.errors import KgarmentError
 from kgarment.problem import Problem, example_path, load_problem, override
 from kgarment.reproduce.catalog import (
@@ -115,25 +115,30 @@ class RunOutcome:
 
 
 def design_run(problem: Problem, folder: Path, device: str = "cpu",
-               progress: Callable[[str, dict, int], None] | None = None) -> RunOutcome:
+               progress: Callable[[str, dict, int], None] | None = None, evaluator=None) -> RunOutcome:
     """Run (or resume, or reuse) the design of ``problem`` in ``folder``; ``progress(run folder's
-    name, metrics row, expected iterations)`` after every iteration."""
+    name, metrics row, expected iterations)`` after every iteration.  With ``evaluator`` (an
+    Evaluator of the problem) the run ends as ``kgarment design`` does: its final design the
+    best iteration at the target area that the evaluator reproduces, evaluated
+    (:func:`kgarment.design.driver.evaluate_final`); without, the best iteration at the target."""
     status = run_status(folder)
     if status != "new":
         _check_same_problem(problem, folder)
-    if status != "finished":
-        if status == "unfinished":
+    evaluated = (folder / "final" / "evaluation.json").is_file()
+    if status != "finished" or (evaluator is not None and not evaluated):  # finished without: its final design chosen
+        if status != "new":
             log.info("resuming %s", folder)
             dr = open_run(None, folder, resume=True, device=device)
         else:  # nothing computed yet: a partial folder without a checkpoint holds nothing to lose
             dr = open_run(problem, folder, force=True, device=device)
         expected = expected_iterations(problem.design.beso)
         finish(dr, progress=(lambda st: progress(folder.name, st.metrics[-1], expected)) if progress else None,
-               evaluate=False)  # the reproduction evaluates every design itself
+               evaluate=evaluator is not None, evaluator=evaluator)  # the evaluator's solves: the reproduction's
     rows = json.loads((folder / "metrics.json").read_text())
     hist = load_design_history(folder)
     beso = problem.design.beso
-    k = best_iteration(rows, beso.target_area, beso.er)
+    evaluated = (folder / "final" / "evaluation.json").is_file()
+    k = final_iteration(folder) if evaluated else best_iteration(rows, beso.target_area, beso.er)
     return RunOutcome(folder, design_values(hist[k]), k, design_values(hist[-1]), rows,
                       float(sum(r["seconds"] for r in rows)))
 

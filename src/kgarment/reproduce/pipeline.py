@@ -80,7 +80,9 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     img = out / "img"
     t0 = time.time()
     problem = experiment_problem(exp, res, overrides=overrides)
-    ours = design_run(problem, out / "runs" / exp.name, device, progress)
+    ev = CachedEvaluator(problem, f"{exp.name}@{res.name}", cache, device)
+    # ours ends as kgarment design does (the best iteration the evaluator reproduces), in the shared store
+    ours = design_run(problem, out / "runs" / exp.name, device, progress, evaluator=ev.evaluator)
     comp = design_run(experiment_problem(exp, res, "compliance", overrides), out / "runs" / f"{exp.name}-compliance",
                       device, progress)
     # activation sets: the same problem designed with every clutch ON, the selective target's comparison
@@ -92,7 +94,6 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
         phases[phase] = time.time() - t0 - sum(phases.values())
 
     lap("designs")
-    ev = CachedEvaluator(problem, f"{exp.name}@{res.name}", cache, device)
     budget = problem.design.beso.target_area
     g = ev.garment
     designs = {
