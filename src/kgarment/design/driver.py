@@ -29,6 +29,7 @@ from kgarment.design.control import Control, control_check
 from kgarment.design.evaluate import DesignEvaluation, Evaluator
 from kgarment.design.loads import load_chart
 from kgarment.design.loop import LoopState, initial_state, iterate, run_loop
+from kgarment.design.path import PATH_FRAMES
 from kgarment.design.refine import coarse_levels, run_coarse, transfer
 from kgarment.design.report import finish_run
 from kgarment.design.reported import select_reported
@@ -154,13 +155,14 @@ def _with_attachments(garment: Garment, path: Path) -> Garment:
 
 def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
            cancelled: Callable[[], bool] | None = None, final: bool = True, evaluate: bool = True,
-           evaluator: Evaluator | None = None) -> DesignRun:
+           evaluator: Evaluator | None = None, path_frames: int = 0) -> DesignRun:
     """Iterate to the end (checkpoint after every iteration), then (``final``) write the
     final design and its renders into ``dr.run / "final"``: with ``evaluate`` the best
     iteration at the target area that the one design evaluator reproduces, evaluated
     (:func:`evaluate_final`; ``evaluator``: the Evaluator to use, e.g. the reproduction's with
-    its shared store; default: one with the run's store), else the best iteration at the
-    target area (:func:`kgarment.design.run.best_iteration`).
+    its shared store; default: one with the run's store; ``path_frames``: judged over the
+    motion from rest in this many frames, as the reproduction's report judges it), else the
+    best iteration at the target area (:func:`kgarment.design.run.best_iteration`).
 
     progress(state) after every iteration (its checkpoint is already written);
     cancelled() is checked after every iteration and raises :class:`Cancelled` (the run
@@ -184,7 +186,7 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
         return dr
     p = dr.setup.params
     if evaluate:
-        k, evaluation, paths = evaluate_final(dr, evaluator=evaluator)
+        k, evaluation, paths = evaluate_final(dr, evaluator=evaluator, path_frames=path_frames)
     else:
         k, evaluation, paths = best_iteration(st.metrics, p.target_area, p.er), None, []
     equilibria = None if evaluation is None else {s.key: s.result for s in evaluation.states}
@@ -238,7 +240,8 @@ def check_control(dr: DesignRun, st: LoopState, folder: Path | None = None) -> l
     return controls
 
 
-def evaluate_final(dr: DesignRun, evaluator: Evaluator | None = None) -> tuple[int, DesignEvaluation, list[Path]]:
+def evaluate_final(dr: DesignRun, evaluator: Evaluator | None = None,
+                   path_frames: int = 0) -> tuple[int, DesignEvaluation, list[Path]]:
     """The final design evaluated like ``kgarment evaluate RUN`` (the one design evaluator,
     per-clutch loads included): the best iteration at the target area that the evaluator
     reproduces (:func:`kgarment.design.reported.select_reported`), written with how it was
@@ -247,20 +250,23 @@ def evaluate_final(dr: DesignRun, evaluator: Evaluator | None = None) -> tuple[i
     ``final/clutch_loads.png``.  These, not the metrics rows (solved warm along the run's
     path, to the design tolerance), are the run's final numbers.  A run with ``[solver]
     path_start`` is evaluated like ``kgarment evaluate RUN --path 10`` (the motion's end a
-    start; its force over the motion under ``path`` in the JSON).  Returns (the iteration,
+    start; its force over the motion under ``path`` in the JSON), and with ``path_frames``
+    like ``--path path_frames`` (the candidates too).  Returns (the iteration,
     its evaluation, the files written)."""
     ev = evaluator or Evaluator(setup_from_problem(dr.problem, dr.body, dr.garment, dr.strips, "evaluate",
                                                    dr.setup.solver.device),
                                 run_store(dr.run))  # kgarment evaluate / plan RUN take them from there
     paths_of: dict[int, object] = {}
+    # a run that designs against the motion is judged by it: --path's numbers
+    frames = path_frames or (PATH_FRAMES if dr.setup.path_start else 0)
 
     def candidate(k: int) -> DesignEvaluation:
         design = design_values(dr.state.designs[k])
         path = None
-        if dr.setup.path_start:  # a run that designs against the motion is judged by it: --path's numbers
-            from kgarment.design.path import PATH_FRAMES, path_forces
+        if frames:
+            from kgarment.design.path import path_forces
 
-            path = paths_of[k] = path_forces(ev, design, dr.problem, frames=PATH_FRAMES)
+            path = paths_of[k] = path_forces(ev, design, dr.problem, frames=frames)
         return ev.evaluate(design, loads=False, known=None if path is None else path.ends)
 
     p = dr.setup.params

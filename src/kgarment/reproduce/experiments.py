@@ -115,12 +115,14 @@ class RunOutcome:
 
 
 def design_run(problem: Problem, folder: Path, device: str = "cpu",
-               progress: Callable[[str, dict, int], None] | None = None, evaluator=None) -> RunOutcome:
+               progress: Callable[[str, dict, int], None] | None = None, evaluator=None,
+               path_frames: int = 0) -> RunOutcome:
     """Run (or resume, or reuse) the design of ``problem`` in ``folder``; ``progress(run folder's
     name, metrics row, expected iterations)`` after every iteration.  With ``evaluator`` (an
     Evaluator of the problem) the run ends as ``kgarment design`` does: its final design the
     best iteration at the target area that the evaluator reproduces, evaluated
-    (:func:`kgarment.design.driver.evaluate_final`); without, the best iteration at the target."""
+    (:func:`kgarment.design.driver.evaluate_final`; over the motion from rest in ``path_frames``
+    frames, as the report judges it, where given); without, the best iteration at the target."""
     status = run_status(folder)
     if status != "new":
         _check_same_problem(problem, folder)
@@ -133,7 +135,7 @@ def design_run(problem: Problem, folder: Path, device: str = "cpu",
             dr = open_run(problem, folder, force=True, device=device)
         expected = expected_iterations(problem.design.beso)
         finish(dr, progress=(lambda st: progress(folder.name, st.metrics[-1], expected)) if progress else None,
-               evaluate=evaluator is not None, evaluator=evaluator)  # the evaluator's solves: the reproduction's
+               evaluate=evaluator is not None, evaluator=evaluator, path_frames=path_frames)  # the evaluator's solves: the reproduction's
     rows = json.loads((folder / "metrics.json").read_text())
     hist = load_design_history(folder)
     beso = problem.design.beso

@@ -82,7 +82,8 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     problem = experiment_problem(exp, res, overrides=overrides)
     ev = CachedEvaluator(problem, f"{exp.name}@{res.name}", cache, device)
     # ours ends as kgarment design does (the best iteration the evaluator reproduces), in the shared store
-    ours = design_run(problem, out / "runs" / exp.name, device, progress, evaluator=ev.evaluator)
+    ours = design_run(problem, out / "runs" / exp.name, device, progress, evaluator=ev.evaluator,
+                      path_frames=res.path_frames)
     comp = design_run(experiment_problem(exp, res, "compliance", overrides), out / "runs" / f"{exp.name}-compliance",
                       device, progress)
     # activation sets: the same problem designed with every clutch ON, the selective target's comparison
