@@ -29,7 +29,7 @@ from kgarment.design.control import Control, control_check
 from kgarment.design.evaluate import DesignEvaluation, Evaluator
 from kgarment.design.loads import load_chart
 from kgarment.design.loop import LoopState, initial_state, iterate, run_loop
-from kgarment.design.path import PATH_FRAMES
+from kgarment.design.path import PATH_FRAMES, path_forces
 from kgarment.design.refine import coarse_levels, run_coarse, transfer
 from kgarment.design.report import finish_run
 from kgarment.design.reported import select_reported
@@ -264,8 +264,6 @@ def evaluate_final(dr: DesignRun, evaluator: Evaluator | None = None,
         design = design_values(dr.state.designs[k])
         path = None
         if frames:
-            from kgarment.design.path import path_forces
-
             path = paths_of[k] = path_forces(ev, design, dr.problem, frames=frames)
         return ev.evaluate(design, loads=False, known=None if path is None else path.ends)
 
