@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import json
 import time
 from pathlib import Path
 
@@ -65,18 +64,16 @@ def print_summary(dr, seconds: float) -> None:
     st = dr.state
     row = st.metrics[-1]
     print(f"\n{len(st.metrics)} iterations in {seconds:.0f} s; last iteration {rho_line(row, list(dr.setup.motions))}")
-    if dr.evaluation is not None:
-        from kgarment.design.run import final_iteration
-
-        k = final_iteration(dr.run)
+    if dr.evaluation is not None:  # and dr.selection: how finish chose it
+        sel = dr.selection
+        k = sel.iteration
         checked = dr.setup.path_start > 0
-        sel = json.loads((dr.run / "final" / "evaluation.json").read_text()).get("selection", {})
-        tried = sel.get("candidates", [])
         how = ("the best objective at the target area" + (" among the iterations solved over the motion"
                                                            if checked else ""))
-        if len(tried) > 1:
-            how += (f" that the evaluator reproduces; {len(tried) - 1} better one(s) not" if sel.get("reproduced") else
-                    f"; the evaluator reproduces none of the {len(tried)} best, this one is the best as evaluated")
+        if len(sel.tried) > 1:
+            n = len(sel.tried)
+            how += (f" that the evaluator reproduces; {n - 1} better one(s) not" if sel.reproduced else
+                    f"; the evaluator reproduces none of the {n} best, this one is the best as evaluated")
         print(f"final design: iteration {k} ({how}), evaluated like kgarment evaluate {dr.run}"
               + (f" --path {PATH_FRAMES}" if checked else "") + ":")
         print_evaluation(dr.evaluation)

@@ -32,7 +32,7 @@ from kgarment.design.loop import LoopState, initial_state, iterate, run_loop
 from kgarment.design.path import PATH_FRAMES, path_forces
 from kgarment.design.refine import coarse_levels, run_coarse, transfer
 from kgarment.design.report import finish_run
-from kgarment.design.reported import select_reported
+from kgarment.design.reported import Reported, select_reported
 from kgarment.design.run import (
     best_iteration,
     check_model,
@@ -67,7 +67,8 @@ class DesignRun:
     run : folder;  problem : Problem;  body : Body;  garment : Garment (its attachments are
     the run's);  strips : the clutch strips;  setup : DesignSetup;  state : LoopState (the
     next iteration, or the final state after :func:`finish`);  paths : files written by
-    :func:`finish`.
+    :func:`finish`;  evaluation : the final design's evaluation and selection : how it was
+    chosen (:func:`evaluate_final`; None without one).
     """
 
     run: Path
@@ -79,6 +80,7 @@ class DesignRun:
     state: LoopState
     paths: tuple[Path, ...] = ()
     evaluation: DesignEvaluation | None = None
+    selection: Reported | None = None
 
 
 def open_run(problem: Problem | None, run, *, resume: bool = False, force: bool = False, device: str = "cpu",
@@ -186,12 +188,13 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
         return dr
     p = dr.setup.params
     if evaluate:
-        k, evaluation, paths = evaluate_final(dr, evaluator=evaluator, path_frames=path_frames)
+        selection, evaluation, paths = evaluate_final(dr, evaluator=evaluator, path_frames=path_frames)
+        k = selection.iteration
     else:
-        k, evaluation, paths = best_iteration(st.metrics, p.target_area, p.er), None, []
+        k, selection, evaluation, paths = best_iteration(st.metrics, p.target_area, p.er), None, None, []
     equilibria = None if evaluation is None else {s.key: s.result for s in evaluation.states}
     paths = finish_run(dr.run, dr.setup, st, dr.body, dr.garment, list(dr.strips), k, equilibria) + paths
-    return dataclasses.replace(dr, paths=tuple(paths), evaluation=evaluation)
+    return dataclasses.replace(dr, paths=tuple(paths), evaluation=evaluation, selection=selection)
 
 
 def start_from_coarse(dr: DesignRun, after: Callable[[LoopState], None],
@@ -241,7 +244,7 @@ def check_control(dr: DesignRun, st: LoopState, folder: Path | None = None) -> l
 
 
 def evaluate_final(dr: DesignRun, evaluator: Evaluator | None = None,
-                   path_frames: int = 0) -> tuple[int, DesignEvaluation, list[Path]]:
+                   path_frames: int = 0) -> tuple[Reported, DesignEvaluation, list[Path]]:
     """The final design evaluated like ``kgarment evaluate RUN`` (the one design evaluator,
     per-clutch loads included): the best iteration at the target area that the evaluator
     reproduces (:func:`kgarment.design.reported.select_reported`), written with how it was
@@ -251,7 +254,7 @@ def evaluate_final(dr: DesignRun, evaluator: Evaluator | None = None,
     path, to the design tolerance), are the run's final numbers.  A run with ``[solver]
     path_start`` is evaluated like ``kgarment evaluate RUN --path 10`` (the motion's end a
     start; its force over the motion under ``path`` in the JSON), and with ``path_frames``
-    like ``--path path_frames`` (the candidates too).  Returns (the iteration,
+    like ``--path path_frames`` (the candidates too).  Returns (how the iteration was chosen,
     its evaluation, the files written)."""
     ev = evaluator or Evaluator(setup_from_problem(dr.problem, dr.body, dr.garment, dr.strips, "evaluate",
                                                    dr.setup.solver.device),
@@ -270,14 +273,13 @@ def evaluate_final(dr: DesignRun, evaluator: Evaluator | None = None,
     p = dr.setup.params
     chosen = select_reported(dr.state.metrics, p.target_area, p.er, dr.setup, candidate)
     k, path = chosen.iteration, paths_of.get(chosen.iteration)
-    # the loads of the chosen one (its states are solved: the evaluator's store gives them back)
-    res = ev.evaluate(design_values(dr.state.designs[k]), loads=True, known=None if path is None else path.ends)
-    along = {t["iteration"]: t["along_run"] for t in chosen.tried}[k]
-    doc = {"run": str(dr.run), "iteration": k, **res.to_json(), "along_run": along, "selection": chosen.to_json(),
+    res = ev.with_loads(chosen.evaluation, design_values(dr.state.designs[k]))
+    doc = {"run": str(dr.run), "iteration": k, **res.to_json(), "along_run": chosen.along_run,
+           "selection": chosen.to_json(),
            **({} if path is None else {"path": path.to_json()})}
     paths = [atomic_write_text(dr.run / "final" / "evaluation.json", json_text(doc))]
     if res.loads is not None:
         paths.append(load_chart(res.loads, dr.run / "final" / "clutch_loads.png",
                                 f"{dr.garment.name}: clutch loads of the final design"))
-    return k, res, paths
+    return chosen, res, paths
 

@@ -413,11 +413,17 @@ class Evaluator:
         known = known or {}
         pairs = [(rf, with_known(eq, known.get(k))) for (k, _), (rf, eq) in zip(keyed, pairs)]
         ev = self._summarise(design, keyed, pairs)
-        if loads and self.setup.n_clutches and self.setup.objective != "passive":
-            known = {s.key: s.result for s in ev.states if s.state in ("on", "off")}
-            motions = list(dict.fromkeys(s.motion for s in ev.states))
-            ev = dataclasses.replace(ev, loads=clutch_loads(self, design, motions, known))
-        return ev
+        return self.with_loads(ev, design) if loads else ev
+
+    def with_loads(self, ev: DesignEvaluation, design: np.ndarray) -> DesignEvaluation:
+        """``ev``, this evaluator's evaluation of ``design`` (m,), with the per-clutch load
+        report (:func:`kgarment.design.loads.clutch_loads`, from its ON and OFF equilibria;
+        clutched objectives only, else ``ev`` as it is)."""
+        if not self.setup.n_clutches or self.setup.objective == "passive":
+            return ev
+        known = {s.key: s.result for s in ev.states if s.state in ("on", "off")}
+        motions = list(dict.fromkeys(s.motion for s in ev.states))
+        return dataclasses.replace(ev, loads=clutch_loads(self, np.asarray(design, dtype=np.float64), motions, known))
 
     def _one(self, design, keyed_state, i: int, n: int, report, cancelled) -> tuple[StateResult, Equilibrium]:
         """The reference and the design's equilibrium of one state, reporting and checking

@@ -62,7 +62,7 @@ def evaluated_objective(setup, res) -> float:
 class Reported:
     """The reported iteration and how it was chosen.
 
-    iteration : the reported one;  evaluation : what ``evaluate`` returned for it;  tried :
+    iteration : the reported one;  evaluation : its DesignEvaluation (without loads);  tried :
     per candidate evaluated, in order, {"iteration", "objective" (the run's),
     "evaluated_objective", "along_run" (:func:`along_run`), "reached"};  reproduced : the
     reported one was reached (False: none of the candidates was; the best evaluated is
@@ -74,6 +74,11 @@ class Reported:
     tried: tuple[dict, ...]
     reproduced: bool
 
+    @property
+    def along_run(self) -> dict[str, dict]:
+        """:func:`along_run` of the reported iteration."""
+        return next(t["along_run"] for t in self.tried if t["iteration"] == self.iteration)
+
     def to_json(self) -> dict:
         return {"iteration": self.iteration, "reproduced": self.reproduced, "candidates": list(self.tried)}
 
@@ -81,21 +86,19 @@ class Reported:
 def select_reported(rows: list[dict], target: float, er: float, setup,
                     evaluate: Callable[[int], object], candidates: int = CANDIDATES) -> Reported:
     """The iteration to report among the run's metrics ``rows`` (target area ``target``,
-    BESO's ``er``), ``evaluate(k)`` giving iteration k's DesignEvaluation (or an object with
-    it as ``.evaluation``); ``setup`` the run's DesignSetup (for the evaluated objective).
+    BESO's ``er``), ``evaluate(k)`` giving iteration k's DesignEvaluation; ``setup`` the run's DesignSetup (for the evaluated objective).
     A run with no iteration at the target reports its last one, evaluated, as before."""
     by_iteration = {int(r["iteration"]): r for r in rows}
     ranked = ranked_iterations(rows, target, er)[:max(1, candidates)] or [int(rows[-1]["iteration"])]
     tried, results = [], {}
     for k in ranked:
-        results[k] = out = evaluate(k)
-        res = getattr(out, "evaluation", out)
+        results[k] = res = evaluate(k)
         run = along_run(by_iteration[k], res)
         reached = all(v["reached"] for v in run.values())
         tried.append({"iteration": k, "objective": float(by_iteration[k]["objective"]),
                       "evaluated_objective": evaluated_objective(setup, res), "along_run": run, "reached": reached})
         if reached:
-            return Reported(k, out, tuple(tried), True)
+            return Reported(k, res, tuple(tried), True)
         lost = ", ".join(f"{m} {v['evaluated']:.3g} (run {v['run']:.3g})" for m, v in run.items() if not v["reached"])
         log.warning("iteration %d: the evaluator does not reach the run's equilibrium: rho ON %s", k, lost)
     best = max(tried, key=lambda t: t["evaluated_objective"])

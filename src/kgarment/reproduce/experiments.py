@@ -135,7 +135,7 @@ def design_run(problem: Problem, folder: Path, device: str = "cpu",
             dr = open_run(problem, folder, force=True, device=device)
         expected = expected_iterations(problem.design.beso)
         finish(dr, progress=(lambda st: progress(folder.name, st.metrics[-1], expected)) if progress else None,
-               evaluate=evaluator is not None, evaluator=evaluator, path_frames=path_frames)  # the evaluator's solves: the reproduction's
+               evaluate=evaluator is not None, evaluator=evaluator, path_frames=path_frames)
     rows = json.loads((folder / "metrics.json").read_text())
     hist = load_design_history(folder)
     beso = problem.design.beso
