@@ -10,7 +10,15 @@ import pytest
 from test_design_loop import _sheet_setup
 
 from kgarment.constants import GUARD_AREA, GUARD_FLOOR, GUARD_RETRIES
-from kgarment.design.guard import boosted, collapsed, guard_step, last_accepted, rejections_in_a_row
+from kgarment.design.guard import (
+    blinding,
+    boosted,
+    collapsed,
+    guard_step,
+    last_accepted,
+    paths_of,
+    rejections_in_a_row,
+)
 from kgarment.design.loop import advance, initial_state, iterate, metrics_row, sensitivities, solve
 from kgarment.design.objective import objective_terms, objective_value
 from kgarment.design.run import best_iteration, load_checkpoint, save_checkpoint
@@ -64,6 +72,42 @@ def test_rejections_give_up_after_the_retries_and_the_area_cap():
     alpha = np.linspace(0, 1, 100)
     assert np.all(boosted(alpha, removed)[:3] > alpha.max())
     np.testing.assert_array_equal(boosted(alpha, None), alpha)
+
+
+def test_with_a_lockout_the_guard_watches_the_gain_and_is_not_blinded_by_lock_states():
+    """A motion's lock states (another set ON in it) enter only the lockout penalty: one that
+    did not converge neither keeps the guard from judging a step nor keeps an iteration from
+    being its reference, and the guard compares the gains (the terms without the penalty)."""
+    assert blinding("a[on];a[lock:b];b[off]") == ["a[on]", "b[off]"]
+    assert blinding(["a[lock:b]"]) == [] and blinding("") == []
+    rows = [{"rejected": "", "unconverged_states": "", "term[a]": 0.4},
+            {"rejected": "", "unconverged_states": "a[lock:b]", "term[a]": 0.1, "gain[a]": 0.4}]
+    assert last_accepted(rows) == 1
+    assert last_accepted(rows + [{"rejected": "", "unconverged_states": "a[on]"}]) == 1
+    assert paths_of(rows[1]) == {"a": 0.4} and paths_of(rows[0]) == {"a": 0.4}
+    areas, removed = np.ones(100), np.arange(100) < 3
+    # against the reference's gain (0.4), 0.15 is a collapse; against its term (0.1) it would not be
+    assert guard_step(rows, {"a": 0.15}, 0.5, removed, None, areas, 0.2)[0] == ["a"]
+    assert guard_step(rows, {"a": 0.25}, 0.5, removed, None, areas, 0.2)[0] == []
+
+
+def test_the_gain_column_is_the_term_without_the_lockout_penalty():
+    """metrics_row with a lockout: gain[m] = (ON - OFF) / reference ON, term[m] = that less
+    lockout * (LOCK - OFF) / reference ON, from the row's own energies."""
+    from test_design_activation import tube_setup
+
+    sets = {"pull": np.array([1.0, 0.0]), "twist": np.array([0.0, 1.0])}
+    setup = tube_setup(sets, lockout=0.7)
+    st = initial_state(setup)
+    solved = solve(setup, st)
+    row = metrics_row(setup, st, solved, solved.energy, solved.stored)
+    for m, other in (("pull", "twist"), ("twist", "pull")):
+        on, off, lock = (row[f"energy[{m}:{s}]"] for s in ("on", "off", f"lock:{other}"))
+        assert row[f"gain[{m}]"] == pytest.approx((on - off) / on)
+        assert row[f"term[{m}]"] == pytest.approx((on - off - 0.7 * (lock - off)) / on)
+    plain = tube_setup(sets)
+    assert not any(k.startswith("gain[") for k in metrics_row(plain, st, solve(plain, st), solved.energy,
+                                                               solved.stored))
 
 
 def test_a_rejected_step_is_made_again_from_the_last_accepted_design(tmp_path):

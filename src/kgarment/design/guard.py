@@ -20,6 +20,14 @@ guard applies only to terms of at least :data:`~kgarment.constants.GUARD_FLOOR` 
 path worth keeping), lets the step through after
 :data:`~kgarment.constants.GUARD_RETRIES` rejections in a row, and keeps the guarded
 faces' area below :data:`~kgarment.constants.GUARD_AREA` of the target area.
+
+With ``[design] lockout`` a motion's term also pays for what the other motions' clutch sets
+store in it (its ``lock:`` states), and those states are the hardest to solve (a buckled,
+idle clutch on a bent limb).  The guard watches the load path, so it reads each motion's term
+without that penalty (the ``gain[motion]`` column), and a ``lock:`` state that did not
+converge does not keep it from judging a step: measured on the selective sleeve solved to
+1e-2 (2026-11-29), flexion's ON state fell from rho ON 1.20 to 0.30 in a step whose lock
+state had not converged, and the step went through unjudged, as did the next ones.
 """
 
 from __future__ import annotations
@@ -30,6 +38,15 @@ from kgarment.constants import GUARD_AREA, GUARD_FLOOR, GUARD_RETRIES
 
 TERM = "term[{}]"  # metrics column: a motion's term of the objective
 REJECTED = "rejected"  # metrics column: the motions whose term collapsed ("" if accepted)
+GAIN = "gain[{}]"  # metrics column (with lockout): a motion's term without its lock: states' penalty
+
+
+def blinding(unconverged) -> list[str]:
+    """The states among ``unconverged`` (names, or a metrics row's ";"-joined string) without
+    which the guard cannot judge a step: all but the ``lock:`` states, whose energy only the
+    lockout penalty reads (:data:`GAIN` leaves it out)."""
+    names = [n for n in unconverged.split(";") if n] if isinstance(unconverged, str) else list(unconverged)
+    return [n for n in names if "[lock:" not in n]
 
 
 def collapsed(terms: dict[str, float], before: dict[str, float], guard: float) -> list[str]:
@@ -43,9 +60,10 @@ def collapsed(terms: dict[str, float], before: dict[str, float], guard: float) -
 
 def last_accepted(metrics) -> int | None:
     """Index (into ``metrics``, one row per finished iteration) of the last accepted
-    iteration whose states all converged (the guard's reference), or None."""
+    iteration whose states converged (the guard's reference; a ``lock:`` state may not have,
+    :func:`blinding`), or None."""
     for i in range(len(metrics) - 1, -1, -1):
-        if not metrics[i].get(REJECTED) and not metrics[i].get("unconverged_states"):
+        if not metrics[i].get(REJECTED) and not blinding(metrics[i].get("unconverged_states", "")):
             return i
     return None
 
@@ -65,6 +83,13 @@ def terms_of(row: dict) -> dict[str, float]:
     return {k[5:-1]: float(v) for k, v in row.items() if k.startswith("term[")}
 
 
+def paths_of(row: dict) -> dict[str, float]:
+    """{motion: what the guard watches}: its :data:`GAIN` where the row has one (a run with
+    lockout), else its term."""
+    gains = {k[5:-1]: float(v) for k, v in row.items() if k.startswith("gain[")}
+    return gains or terms_of(row)
+
+
 def guard_step(metrics, terms: dict[str, float], guard: float, removed: np.ndarray, guarded: np.ndarray | None,
                areas: np.ndarray, target: float,
                accepted_alpha: dict[str, np.ndarray] | None = None) -> tuple[list[str], np.ndarray | None]:
@@ -72,7 +97,7 @@ def guard_step(metrics, terms: dict[str, float], guard: float, removed: np.ndarr
     when the step is accepted; the guarded faces after it).
 
     metrics : the rows of the iterations before this one;  terms : {motion: this iteration's
-    term};  removed : (m,) bool faces of the last accepted design that this iteration's
+    term, or its gain with lockout} (:func:`paths_of` of its row);  removed : (m,) bool faces of the last accepted design that this iteration's
     design lacks;  guarded : (m,) bool faces already guarded, or None;  areas : (m,) m^2;
     target : the target area share;  accepted_alpha : {motion: (m,) its sensitivities at the
     last accepted iteration} (None: every removed face is guarded).
@@ -80,7 +105,7 @@ def guard_step(metrics, terms: dict[str, float], guard: float, removed: np.ndarr
     a = last_accepted(metrics)
     if a is None or guard <= 0:
         return [], guarded
-    motions = collapsed(terms, terms_of(metrics[a]), guard)
+    motions = collapsed(terms, paths_of(metrics[a]), guard)
     if not motions or rejections_in_a_row(metrics) >= GUARD_RETRIES:
         return [], guarded
     cand = np.flatnonzero(removed & ~guarded) if guarded is not None else np.flatnonzero(removed)

@@ -45,7 +45,17 @@ import numpy as np
 from kgarment.design.beso import converged, design_values, next_target, settled_ar, update_design
 from kgarment.design.connect import connect_design
 from kgarment.design.evaluate import MULTISTABLE, pick_equilibrium
-from kgarment.design.guard import REJECTED, TERM, boosted, guard_step, last_accepted, terms_of
+from kgarment.design.guard import (
+    GAIN,
+    REJECTED,
+    TERM,
+    blinding,
+    boosted,
+    guard_step,
+    last_accepted,
+    paths_of,
+    terms_of,
+)
 from kgarment.design.levels import put_on
 from kgarment.design.metrics import Stored, relative_energy_density
 from kgarment.design.objective import (
@@ -98,8 +108,8 @@ class LoopState:
     Stored};  designs : per finished iteration its (m,) bool design;  metrics : per finished
     iteration its metrics row;  done : converged or out of iterations;  guarded : (m,) bool
     faces kept by the step guard (:mod:`kgarment.design.guard`), or None;  accepted_alpha :
-    {motion: (m,) its sensitivities at the last accepted iteration} (the guard's; None
-    without it).
+    {motion: (m,) its sensitivities at the last accepted iteration whose states all
+    converged} (the guard's ranking of the faces a rejected step removed; None without it).
     """
 
     iteration: int
@@ -271,6 +281,9 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
         **({"path_checked": solved.path_checked} if setup.path_start else {}),
     }
     row.update({TERM.format(m): v for m, v in terms.items()})
+    if setup.lockout > 0 and setup.objective == "active":  # the guard's reading (kgarment.design.guard)
+        gains = objective_terms(setup.objective, solved.energy, reference, list(setup.motions), 0.0, setup.balance)
+        row.update({GAIN.format(m): v for m, v in gains.items()})
     row.update({f"rho[{k[0]}:{k[1]}]": relative_energy_density(design, setup.areas_of(k[0]), solved.stored[k],
                                                                reference_stored[k], setup.clutch_area_of(k[0]))
                 for k in solved.stored})
@@ -300,9 +313,9 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
     p = setup.params
     rejected, guarded, base, accepted = [], st.guarded, st.design, st.accepted_alpha
     a = last_accepted(st.metrics)
-    if setup.guard > 0 and a is not None and not solved.unconverged:
+    if setup.guard > 0 and a is not None and not blinding(solved.unconverged):
         removed = st.designs[a] & ~(st.design > 0.5)
-        rejected, guarded = guard_step(st.metrics, terms_of(row), setup.guard, removed, st.guarded, setup.areas,
+        rejected, guarded = guard_step(st.metrics, paths_of(row), setup.guard, removed, st.guarded, setup.areas,
                                        st.target, st.accepted_alpha)
     if setup.guard > 0 and not rejected and not solved.unconverged:
         accepted = motion_sensitivities(setup.objective, solved.alpha, list(setup.motions), setup.lockout,
