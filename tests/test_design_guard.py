@@ -128,6 +128,12 @@ def test_a_rejected_step_is_made_again_from_the_last_accepted_design(tmp_path):
     row["term[pull]"] = 0.1 * st.metrics[-1]["term[pull]"]  # as if the step broke the load path
     nxt = advance(setup, st, solved, filt, row, st.reference, st.reference_stored)
     assert row["rejected"] == "pull" and math.isnan(nxt.objectives[-1])
+    # the same drop where the motion-from-rest check ([solver] path_start) moved the state: the
+    # measurement's, not the step's; accepted, the guard's next reference
+    moved = dataclasses.replace(solved, path_moved=("pull",))
+    again = dict(row, rejected="")
+    kept = advance(setup, st, moved, filt, again, st.reference, st.reference_stored)
+    assert again["rejected"] == "" and kept.guarded is st.guarded
     removed = np.flatnonzero(st.designs[-1] & ~(st.design > 0.5))
     assert len(removed) > 1
     # guarded: the half of the removed faces that ranked highest for the motion when accepted

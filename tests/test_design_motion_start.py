@@ -1,5 +1,6 @@
 """``[solver] path_start``: the design loop's ON states also solved over their motion from
-rest, that end kept where it is clearly lower (kgarment.design.motion_start.motion_ends)."""
+rest as the evaluator solves them, that end kept where the evaluator would keep it
+(kgarment.design.motion_start.motion_ends)."""
 
 from __future__ import annotations
 
@@ -11,11 +12,11 @@ import numpy as np
 import pytest
 from tiny_problems import TINY_SLEEVE
 
-from kgarment.constants import PATH_START_FRAMES
 from kgarment.design.beso import design_values
-from kgarment.design.evaluate import MULTISTABLE
+from kgarment.design.evaluate import MULTISTABLE, Evaluator
+from kgarment.design.frames import REST
 from kgarment.design.motion_start import motion_ends
-from kgarment.design.path import PATH_FRAMES
+from kgarment.design.path import PATH_FRAMES, path_forces
 from kgarment.design.setup import setup_from_problem
 from kgarment.errors import KgarmentError
 from kgarment.problem import build_clutches, build_garment, parse_problem
@@ -27,40 +28,53 @@ workers = 1
 
 
 @pytest.fixture(scope="module")
-def setup(anny_body):
+def parts(anny_body):
     p = parse_problem(tomllib.loads(SLEEVE.format(every=3)))
     g = build_garment(p, anny_body)
-    return setup_from_problem(p, anny_body, g, build_clutches(p, anny_body, g), "design")
+    return p, anny_body, g, build_clutches(p, anny_body, g)
 
 
-def test_the_frames_lead_to_the_target_pose(setup):
-    (frames,) = setup.path_frames.values()
-    assert setup.path_start == 3 and len(frames) == PATH_START_FRAMES - 1
+@pytest.fixture(scope="module")
+def setup(parts):
+    return setup_from_problem(*parts, "design")
+
+
+def test_the_frames_are_the_evaluators_and_lead_to_the_target_pose(setup):
+    frames, index = setup.path_frames
+    assert setup.path_start == 3 and REST in frames
+    assert [t for _, m, t in index] == pytest.approx([k / PATH_FRAMES for k in range(1, PATH_FRAMES + 1)])
     target = setup.motions["arm_flexion.right"].garment_x0
-    # the body's pose moves towards the target frame by frame: the attached garment with it
-    gaps = [float(np.abs(f.garment_x0 - target).max()) for f in frames]
-    assert all(a > b for a, b in itertools.pairwise(gaps)) and gaps[-1] > 1e-4
+    # the body's pose moves towards the target frame by frame (the attached garment with it),
+    # the last frame is the target pose
+    gaps = [float(np.abs(frames[label].garment_x0 - target).max()) for label, _, _ in index]
+    assert all(a > b for a, b in itertools.pairwise(gaps)) and gaps[-1] < 1e-9
 
 
-def test_a_higher_equilibrium_is_replaced_and_a_lower_one_kept(setup):
+def test_a_higher_equilibrium_is_replaced_and_a_lower_one_kept(setup, parts):
     """Given an ON equilibrium that is not one (the skin-tight start stopped after 2 Newton
-    iterations: higher energy, unconverged), the motion's converged end replaces it; given
-    the motion's own end, nothing changes; OFF states are never touched."""
+    iterations: higher energy, unconverged), the motion's converged end replaces it, and it is
+    the end of ``evaluate --path`` (the evaluator's own motion from rest); given the motion's
+    own end, nothing changes; OFF states are never touched."""
     keyed = setup.states()
     mask = np.ones(setup.model.n_faces, bool)
     mask[::3] = False
     design = design_values(mask)
     stopped = setup.solve(design, [s for _, s in keyed], options=dataclasses.replace(setup.solver, max_iter=2))
     assert not any(r.converged for r in stopped)
-    out, newton = motion_ends(setup, design, keyed, stopped, setup.solver)
+    out, moved = motion_ends(setup, design, keyed, stopped)
     on = [i for i, (k, _) in enumerate(keyed) if k[1] == "on"]
     off = [i for i, (k, _) in enumerate(keyed) if k[1] == "off"]
-    assert newton > 0 and on and off
+    assert moved == ["arm_flexion.right"] and on and off
     for i in on:
         assert out[i] is not stopped[i] and out[i].converged and out[i].name == keyed[i][1].name
     for i in off:
         assert out[i] is stopped[i]
-    again, _ = motion_ends(setup, design, keyed, out, setup.solver)
+    # the evaluator's motion from rest (its own setup, tolerance and frames) ends where the check did
+    ev = Evaluator(setup_from_problem(*parts, "evaluate"))
+    (end,) = (r for (m, s), r in path_forces(ev, design, parts[0], frames=PATH_FRAMES).ends.items() if s == "on")
+    assert out[on[0]].total_energy == pytest.approx(end.total_energy, rel=1e-6)
+    again, moved = motion_ends(setup, design, keyed, out)
+    assert moved == []
     for i in on:  # its own end (solved again the same way) is not lower by MULTISTABLE
         assert again[i] is out[i] or again[i].total_energy < out[i].total_energy * (1 - MULTISTABLE)
         assert again[i].total_energy == pytest.approx(out[i].total_energy, rel=MULTISTABLE)
@@ -71,7 +85,7 @@ def test_bad_values_and_uses_are_one_line_errors(anny_body):
         parse_problem(tomllib.loads(SLEEVE.format(every=-1)))
     p = parse_problem(tomllib.loads(SLEEVE.format(every=0)))
     g = build_garment(p, anny_body)
-    assert setup_from_problem(p, anny_body, g, build_clutches(p, anny_body, g), "design").path_frames == {}
+    assert setup_from_problem(p, anny_body, g, build_clutches(p, anny_body, g), "design").path_frames == ()
 
 
 def test_the_reported_design_is_one_whose_motion_was_solved(tmp_path):
@@ -98,3 +112,29 @@ def test_the_reported_design_is_one_whose_motion_was_solved(tmp_path):
     assert sorted({f["t"] for f in final["path"]["frames"]}) == pytest.approx([k / PATH_FRAMES  # rest, then frames
                                                                               for k in range(PATH_FRAMES + 1)])
     assert all(isinstance(r["from_path"], bool) for r in final["rows"])
+
+
+def test_with_the_two_starts_the_state_becomes_the_evaluators_even_when_higher(setup):
+    """With the iteration's two-start solves (skin_start) the checked state becomes what the
+    evaluator reports, the lower of those and the motion's end: an equilibrium only the loop's
+    continuation reached is dropped even where it stores less (stood in for here by a
+    converged solve of a sparser design: lower energy, not the evaluator's)."""
+    keyed = setup.states()
+    mask = np.ones(setup.model.n_faces, bool)
+    mask[::3] = False
+    design = design_values(mask)
+    sparse = design_values(np.arange(setup.model.n_faces) % 5 == 0)
+    ends, _ = motion_ends(setup, design, keyed, setup.solve(design, [s for _, s in keyed],
+                                                              options=dataclasses.replace(setup.solver, max_iter=2)))
+    on = next(i for i, (k, _) in enumerate(keyed) if k[1] == "on")
+    low = setup.solve(sparse, [s for _, s in keyed], options=setup.solver)
+    assert low[on].converged and low[on].total_energy < ends[on].total_energy * (1 - MULTISTABLE)
+    out, moved = motion_ends(setup, design, keyed, low, starts=ends)
+    assert moved == ["arm_flexion.right"]
+    assert out[on].total_energy == pytest.approx(ends[on].total_energy, rel=MULTISTABLE)
+    # without the starts a lower equilibrium is kept
+    kept, moved = motion_ends(setup, design, keyed, low)
+    assert kept[on] is low[on] and moved == []
+    # where the loop already holds the evaluator's equilibrium nothing moves
+    same, moved = motion_ends(setup, design, keyed, out, starts=ends)
+    assert moved == [] and same[on] is out[on]

@@ -136,8 +136,10 @@ class Solved:
     unconverged : names of the states that did not converge;  energy : {StateKey: J stored
     in the reinforced faces (and clutches)};  stored : {StateKey: Stored};  alpha : {StateKey:
     (m,) element sensitivities};  newton_iterations : of every solve, both starts with
-    ``skin_start`` and the motion from rest with ``path_start``;  path_checked : the ON
-    states were also solved over their motion from rest (``path_start``).
+    ``skin_start`` (not the motion from rest's);  path_checked : the ON states were also solved
+    over their motion from rest (``path_start``);  path_moved : the motions whose ON state
+    that check replaced (the guard does not judge such an iteration: the drop is the
+    measurement's, not the step's; it becomes the guard's reference).
     """
 
     keys: list[StateKey]
@@ -150,6 +152,7 @@ class Solved:
     alpha: dict[StateKey, np.ndarray]
     newton_iterations: int
     path_checked: bool = False
+    path_moved: tuple[str, ...] = ()
 
 
 def initial_state(setup: DesignSetup) -> LoopState:
@@ -165,6 +168,7 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     warm = [st.warm.get(s.name) for s in states]
     if not st.warm:  # iteration 0: the garment as put on (on a large subdivided garment solved one level down first)
         warm = put_on(setup, st.design, states)
+    starts = None  # with skin_start: per state the better of the evaluator's two starts
     if setup.skin_start and st.warm:
         n = len(states)
         full = [st.warm.get(s.name + FULL) for s in states]  # the evaluator's second start (FULL)
@@ -175,19 +179,21 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
                            options=opts)  # one batch: the workers share the solves
         results = [pick_equilibrium(w, dataclasses.replace(c, name=s.name)).result
                    for s, w, c in zip(states, both[:n], both[n:2 * n])]
+        starts = [dataclasses.replace(c, name=s.name) for s, c in zip(states, both[n:2 * n])]
         for j, i in enumerate(has):
             results[i] = pick_equilibrium(results[i], dataclasses.replace(both[2 * n + j], name=states[i].name)).result
+            starts[i] = pick_equilibrium(starts[i], dataclasses.replace(both[2 * n + j], name=states[i].name)).result
         others = list(enumerate(both[n:2 * n])) + [(i, both[2 * n + j]) for j, i in enumerate(has)]
         results, more = _continue_lower(setup, st.design, states, results, others, opts)
         both = both + more
     else:
         results = both = setup.solve(st.design, states, warm_start=warm, options=opts)
-    path_newton = 0
+    moved: list[str] = []
     checked = bool(setup.path_start) and st.iteration > 0 and st.iteration % setup.path_start == 0
     if checked:
         from kgarment.design.motion_start import motion_ends
 
-        results, path_newton = motion_ends(setup, st.design, keyed, results, opts)
+        results, moved = motion_ends(setup, st.design, keyed, results, starts)
     factor = log_stiffness_derivative(st.design, setup.model.preset) / setup.model.preset.penal
     alpha, energy, stored = {}, {}, {}
     for (key, _), r in zip(keyed, results):
@@ -197,7 +203,7 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
         energy[key] = float(s.face_energy[st.design > 0.5].sum() + s.clutch_energy)
     return Solved([k for k, _ in keyed], states, results, opts,
                   [r.name for r in results if not r.converged], energy, stored, alpha,
-                  int(sum(r.convergence.iterations for r in both)) + path_newton, checked)
+                  int(sum(r.convergence.iterations for r in both)), checked, tuple(moved))
 
 
 def _continue_lower(setup: DesignSetup, design: np.ndarray, states: list[SimState], results: list[StateResult],
@@ -278,7 +284,8 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
         "unconverged_states": ";".join(solved.unconverged), "seconds": 0.0,
         "newton_iterations": solved.newton_iterations,
         "solver_tol": solved.options.tol,
-        **({"path_checked": solved.path_checked} if setup.path_start else {}),
+        **({"path_checked": solved.path_checked, "path_moved": ",".join(solved.path_moved)}
+           if setup.path_start else {}),
     }
     row.update({TERM.format(m): v for m, v in terms.items()})
     if setup.lockout > 0 and setup.objective == "active":  # the guard's reading (kgarment.design.guard)
@@ -313,7 +320,7 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
     p = setup.params
     rejected, guarded, base, accepted = [], st.guarded, st.design, st.accepted_alpha
     a = last_accepted(st.metrics)
-    if setup.guard > 0 and a is not None and not blinding(solved.unconverged):
+    if setup.guard > 0 and a is not None and not blinding(solved.unconverged) and not solved.path_moved:
         removed = st.designs[a] & ~(st.design > 0.5)
         rejected, guarded = guard_step(st.metrics, paths_of(row), setup.guard, removed, st.guarded, setup.areas,
                                        st.target, st.accepted_alpha)

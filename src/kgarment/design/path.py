@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kgarment.constants import PATH_FRAMES
 from kgarment.design.evaluate import MULTISTABLE
 from kgarment.design.frames import REST, frame_motions
 from kgarment.errors import KgarmentError
@@ -59,7 +60,6 @@ from kgarment.sim import SimState, clutch_tensions, held_after
 from kgarment.sim.slip import slides
 
 log = logging.getLogger(__name__)
-PATH_FRAMES = 10   # frames from rest to the target pose (``--path`` default)
 PATH_JUMP = 0.02   # a relative energy drop between frames counted as a switch of equilibrium
 REST_STARTS = 2    # how the rest frame is solved (JSON "rest_starts"; 2: also backwards from the first frame)
 STATES = ("on", "off")
@@ -207,13 +207,13 @@ def _moving(curve: list[PathFrame], k: int) -> np.ndarray:
     return np.array([f.tension_N[k] for f in curve if f.t > 0.0] or [0.0])
 
 
-def _rest_states(setup, motions, sim_motions) -> tuple[dict, dict]:
+def _rest_states(setup, motions, sim_motions, kinds=STATES) -> tuple[dict, dict]:
     """The rest pose's states of ``motions``: ({(motion, state): its key}, {key: (evaluator
     key, SimState)}); states of equal activation (the key: its bytes) are one state."""
     key_of: dict[tuple[str, str], bytes] = {}
     unique: dict[bytes, tuple] = {}
     for m in motions:
-        for s in STATES:
+        for s in kinds:
             a = np.asarray(setup.on_activation(m) if s == "on" else np.zeros(setup.n_clutches), dtype=np.float64)
             key_of[(m, s)] = b = a.tobytes()
             if b not in unique:  # keyed "@rest": the evaluator keeps equilibria per key (a motion may be "rest")
@@ -232,7 +232,7 @@ def _rest_starts(evaluator, design: np.ndarray, rest: tuple[dict, dict]) -> dict
 
 
 def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: int = PATH_FRAMES,
-                sim_motions=None, first: dict | None = None, attached=None) -> list[PathFrame]:
+                sim_motions=None, first: dict | None = None, attached=None, kinds=STATES) -> list[PathFrame]:
     """The rest pose (t = 0) of each motion of ``motions`` (default: the evaluator's), ON
     (its activation set) and OFF, as PathFrames: the lowest-energy converged equilibrium of
     the design there from the evaluator's starts (:meth:`kgarment.design.Evaluator.equilibria`:
@@ -250,7 +250,7 @@ def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: in
     if sim_motions is None or first is None:
         sim_motions, index = frame_motions(problem, motions, frames, rest=True, attached=attached)
         labels = {m: next(label for label, mm, _ in index if mm == m) for m in motions}
-    key_of, unique = rest = _rest_states(setup, motions, sim_motions)
+    key_of, unique = rest = _rest_states(setup, motions, sim_motions, kinds)
     start = _rest_starts(evaluator, design, rest)
     if first is None:
         keys = list(key_of)
@@ -284,14 +284,17 @@ def _from_rest(r, sim_motions) -> list:
 
 
 def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: int = PATH_FRAMES,
-                report: Callable[[str], None] | None = None, attached=None) -> PathReport:
+                report: Callable[[str], None] | None = None, attached=None, *, kinds=STATES,
+                framed: tuple | None = None) -> PathReport:
     """The :class:`PathReport` of ``design`` (m,) over ``frames`` frames of each motion of
     ``motions`` (default: the evaluator's), ON and OFF.
 
     evaluator : kgarment.design.Evaluator of ``problem`` (its model and solver options);
     report : called with a line of progress before each frame (it may raise
     kgarment.errors.Cancelled to stop);  attached : (m,) bool, the garment's attached faces
-    where the evaluator's garment has others than the problem's (the studio's painting).
+    where the evaluator's garment has others than the problem's (the studio's painting);
+    kinds : which of ON and OFF (the design loop's check: ON only);  framed : the frames
+    (:func:`frame_motions` of ``frames`` with ``rest``) where the caller has them.
     """
     setup = evaluator.setup
     model = setup.model
@@ -299,7 +302,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         raise KgarmentError("--path: the force over the motion is solved on one body; a multi-body design's "
                             "wearers are evaluated at their target poses only (evaluate without --path)")
     motions = evaluator.motion_names(motions)
-    sim_motions, index = frame_motions(problem, motions, frames, rest=True, attached=attached)
+    sim_motions, index = framed or frame_motions(problem, motions, frames, rest=True, attached=attached)
     first = next(iter(sim_motions.values()))
     if first.garment_x0.shape != (model.n_garment, 3):
         raise KgarmentError("the frames' garment differs from the run's (another body or garment?)")
@@ -313,7 +316,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
     by_motion = {m: [(label, t) for label, mm, t in index if mm == m] for m in motions}
     if report is not None:
         report("rest pose (t = 0)")
-    rest_states = _rest_states(setup, motions, sim_motions)
+    rest_states = _rest_states(setup, motions, sim_motions, kinds)
     rest = _rest_starts(evaluator, design, rest_states)
     # (motion, state, frame): (SimState, equilibrium) of the frames solved, the rest pose as frame -1
     solved_states = {(*k, -1): (rest_states[1][b][1], rest[k].x) for k, b in rest_states[0].items()
@@ -335,7 +338,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
             spent = time.perf_counter() - started
             eta = f", {time_left(spent, i, frames)}" if i else ""
             report(f"frame {i + 1}/{frames} (t = {(i + 1) / frames:.2f}{eta})")
-        keys = [(m, s, i) for m in motions for s in STATES]
+        keys = [(m, s, i) for m in motions for s in kinds]
         states = [state(by_motion[m][i][0], m, s, anchor=held(m, s, i)) for m, s, _ in keys]
         warm = [predicted(model, before(m, s, i), st.motion) for (m, s, _), st in zip(keys, states)]
         solved = setup.solve(design, states, warm_start=warm, options=setup.solver)
@@ -353,9 +356,9 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         resolved = _anchor_target(evaluator, design, motions, frames, by_motion, state, results)
         resolved |= _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results)
     out = rest_frames(evaluator, design, problem, motions, sim_motions=sim_motions,
-                      first={(m, s): results[(m, s, 0)].x for m in motions for s in STATES})
+                      first={(m, s): results[(m, s, 0)].x for m in motions for s in kinds}, kinds=kinds)
     for m in motions:
-        for s in STATES:
+        for s in kinds:
             for i, (label, t) in enumerate(by_motion[m]):
                 r = results[(m, s, i)]
                 tension = clutch_tensions(model, design, state(label, m, s), r.x, setup.solver)
@@ -363,7 +366,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
                                      bool(r.converged), (m, s, i) in resolved))
     holding_n = tuple((m, tuple(float(h) for h in model.holding(setup.on_activation(m)))) for m in motions) \
         if model.slips else ()
-    ends = {(m, s): results[(m, s, frames - 1)] for m in motions for s in STATES}
+    ends = {(m, s): results[(m, s, frames - 1)] for m in motions for s in kinds}
     return PathReport(tuple(names), tuple(out), holding_n, ends)
 
 
@@ -413,7 +416,7 @@ def _anchor_target(evaluator, design, motions, frames, by_motion, state, results
     workers share them; each path's sweep is what it would be alone).  Returns the keys
     replaced."""
     setup = evaluator.setup
-    keys = [(m, s) for m in motions for s in STATES]
+    keys = [(m, s) for m in motions for s in STATES if (m, s, frames - 1) in results]
     # keyed like the evaluator's own target states: the same pose, so its equilibria there
     # (and its fully reinforced references) are reused and its numbers are the path's end
     targets = [((m, s), state(by_motion[m][-1][0], m, s)) for m, s in keys]
@@ -452,7 +455,7 @@ def _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results
     replaced: set = set()
     pending = {}
     for m in motions:
-        for s in STATES:
+        for s in (s for s in STATES if (m, s, 0) in results):
             gen = _jump_repairs(m, s, frames, by_motion, state, results, replaced)
             ask = next(gen, None)
             if ask is not None:

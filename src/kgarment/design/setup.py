@@ -69,8 +69,9 @@ class DesignSetup:
     terms (:mod:`kgarment.design.objective`);  wearers : {motion: Wearer} of a multi-body
     design (every motion ``MOTION@BODY``; {} for one body: ``model`` and ``areas`` serve all);
     path_start : every this many iterations the ON states are also solved over their motion
-    from rest (``SolverSpec.path_start``; 0: never);  path_frames : {motion: (Motion, ...)} the
-    garment on the body posed at the motion's frames before the target (for ``path_start``);
+    from rest (``SolverSpec.path_start``; 0: never);  path_frames : for ``path_start``, the
+    evaluator's frames of the motions ({frame: Motion} with the rest pose, [(frame, motion,
+    t)]: :func:`kgarment.design.frames.frame_motions`), else ();
     shares : {motion: its share of the objective} (a motion not in it: 1): a motion and the
     early poses ``[design] early`` adds for it split one, times the motion's ``[design]
     weights`` (:mod:`kgarment.design.objective`).
@@ -98,7 +99,7 @@ class DesignSetup:
     combine: str = "sum"
     wearers: dict[str, Wearer] = field(default_factory=dict, repr=False)
     path_start: int = 0
-    path_frames: dict[str, tuple[Motion, ...]] = field(default_factory=dict, repr=False)
+    path_frames: tuple = field(default=(), repr=False)
     shares: dict[str, float] = field(default_factory=dict)
     store: object = field(default=None, repr=False, compare=False)  # EquilibriumStore (design.store) or None
     coarser: Callable[[], Coarser | None] | None = field(default=None, repr=False, compare=False)
@@ -110,7 +111,7 @@ class DesignSetup:
               activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0,
               balance: float | dict[str, float] = 0.0, guard: float = 0.0, combine: str = "sum",
               wearers: dict[str, Wearer] | None = None, path_start: int = 0,
-              path_frames: dict[str, tuple[Motion, ...]] | None = None,
+              path_frames: tuple = (),
               shares: dict[str, float] | None = None) -> DesignSetup:
         """Precompute areas, filter, adjacency and clutch ends for ``model`` (the garment on
         the body it is cut from; ``wearers``: a multi-body design's, see the class doc)."""
@@ -131,7 +132,7 @@ class DesignSetup:
                    attached.astype(np.int64), loops, skin_start,
                    {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout),
                    dict(balance) if isinstance(balance, dict) else float(balance), float(guard), combine,
-                   dict(wearers or {}), int(path_start), dict(path_frames or {}), dict(shares or {}))
+                   dict(wearers or {}), int(path_start), tuple(path_frames), dict(shares or {}))
 
     def model_of(self, motion: str) -> SimModel:
         """The SimModel ``motion`` is solved on (its wearer's garment)."""
@@ -337,19 +338,15 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
 
         shares = objective_shares(d.early, d.weights)
     path_start = problem.solver.path_start if purpose == "design" and d.objective != "passive" else 0
-    path_frames = {}
+    path_frames: tuple = ()
     if path_start:
-        from kgarment.constants import PATH_START_FRAMES
+        from kgarment.constants import PATH_FRAMES
         from kgarment.design.frames import frame_motions
 
         if wearers:
             raise KgarmentError("[solver] path_start: the motion from rest is solved on one body; a multi-body "
                                 "design ([body] phenotypes) cannot use it")
-        frames, index = frame_motions(problem, list(problem.motions), PATH_START_FRAMES)
-        for label, m, t in index:
-            if t < 1.0:  # the last frame is the target pose, the state's own motion
-                path_frames.setdefault(m, []).append(frames[label])
-        path_frames = {m: tuple(v) for m, v in path_frames.items()}
+        path_frames = frame_motions(problem, list(problem.motions), PATH_FRAMES, rest=True)
     setup = DesignSetup.build(model, motions, d.objective, d.beso, solver,
                               evolution_solver=evolution,
                               protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin),

@@ -271,13 +271,15 @@ class SolverSpec:
     sleeve: along the warm-started path the clutch stays over the outer elbow at 40-300% more
     energy than where the garment settles, turned ~20 degrees about the arm).
     path_start : every ``path_start``-th design iteration (0: never) also solves each ON state
-    over its motion from rest (``PATH_START_FRAMES`` frames, each from the one before, the
-    last the target pose) and keeps that equilibrium where it is lower by more than 1%
-    (``kgarment.design.motion_start.motion_ends``): the one a wearer reaches, which neither the
-    warm-started path through the designs nor the skin-tight start need find (the two-motion
-    sleeve at subdivision 1 turns ~36 degrees about the arm over flexion, 6.8 J against
-    24.9 J).  The later iterations start from it.  Costs PATH_START_FRAMES solves per ON
-    state on those iterations; needs a posable body.
+    over its motion from rest as the evaluator does (``evaluate --path``: the design's rest
+    equilibrium, ``PATH_FRAMES`` frames each from the ones before, friction holding each
+    where the one before left it, at the evaluator's tolerance;
+    ``kgarment.design.motion_start.motion_ends``): the state a wearer reaches, which neither
+    the warm-started path through the designs nor the two starts need find.  With
+    ``skin_start`` the state becomes the evaluator's (the lower of its two starts and that
+    end), without it the end is kept where lower by more than 1%; the later iterations start
+    from it, and the guard does not judge an iteration whose state the check moved.  About a
+    minute per check on the selective sleeve at subdivision 1; needs a posable body.
     workers : processes solving states in parallel; 0 = one per core, at most 8 (results do
     not depend on it).
     """
