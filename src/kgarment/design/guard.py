@@ -78,16 +78,21 @@ def rejections_in_a_row(metrics) -> int:
     return n
 
 
+def _per_motion(row: dict, column: str) -> dict[str, float]:
+    """{motion: value} of a per-motion metrics column (:data:`TERM`, :data:`GAIN`) in a row."""
+    head = column.split("{")[0]
+    return {k[len(head):-1]: float(v) for k, v in row.items() if k.startswith(head)}
+
+
 def terms_of(row: dict) -> dict[str, float]:
     """{motion: term} recorded in a metrics row."""
-    return {k[5:-1]: float(v) for k, v in row.items() if k.startswith("term[")}
+    return _per_motion(row, TERM)
 
 
 def paths_of(row: dict) -> dict[str, float]:
     """{motion: what the guard watches}: its :data:`GAIN` where the row has one (a run with
     lockout), else its term."""
-    gains = {k[5:-1]: float(v) for k, v in row.items() if k.startswith("gain[")}
-    return gains or terms_of(row)
+    return _per_motion(row, GAIN) or terms_of(row)
 
 
 def guard_step(metrics, terms: dict[str, float], guard: float, removed: np.ndarray, guarded: np.ndarray | None,
@@ -97,8 +102,8 @@ def guard_step(metrics, terms: dict[str, float], guard: float, removed: np.ndarr
     when the step is accepted; the guarded faces after it).
 
     metrics : the rows of the iterations before this one;  terms : {motion: this iteration's
-    term, or its gain with lockout} (:func:`paths_of` of its row);  removed : (m,) bool faces of the last accepted design that this iteration's
-    design lacks;  guarded : (m,) bool faces already guarded, or None;  areas : (m,) m^2;
+    term, or its gain with lockout} (:func:`paths_of` of its row);  removed : (m,) bool
+    faces of the last accepted design that this iteration's design lacks;  guarded : (m,) bool faces already guarded, or None;  areas : (m,) m^2;
     target : the target area share;  accepted_alpha : {motion: (m,) its sensitivities at the
     last accepted iteration} (None: every removed face is guarded).
     """

@@ -177,12 +177,12 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
             [dataclasses.replace(states[i], name=states[i].name + FULL) for i in has]
         both = setup.solve(st.design, states + extra, warm_start=warm + [None] * n + [full[i] for i in has],
                            options=opts)  # one batch: the workers share the solves
-        results = [pick_equilibrium(w, dataclasses.replace(c, name=s.name)).result
-                   for s, w, c in zip(states, both[:n], both[n:2 * n])]
         starts = [dataclasses.replace(c, name=s.name) for s, c in zip(states, both[n:2 * n])]
+        results = [pick_equilibrium(w, c).result for w, c in zip(both[:n], starts)]
         for j, i in enumerate(has):
-            results[i] = pick_equilibrium(results[i], dataclasses.replace(both[2 * n + j], name=states[i].name)).result
-            starts[i] = pick_equilibrium(starts[i], dataclasses.replace(both[2 * n + j], name=states[i].name)).result
+            f = dataclasses.replace(both[2 * n + j], name=states[i].name)
+            results[i] = pick_equilibrium(results[i], f).result
+            starts[i] = pick_equilibrium(starts[i], f).result
         others = list(enumerate(both[n:2 * n])) + [(i, both[2 * n + j]) for j, i in enumerate(has)]
         results, more = _continue_lower(setup, st.design, states, results, others, opts)
         both = both + more
