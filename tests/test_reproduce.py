@@ -228,6 +228,17 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
         for r in ev["ours"]["rows"]:  # where the motion from rest did not end lower (the reproduction's --path)
             if not r["from_path"]:
                 assert r["rho"] == pytest.approx(final["rho"][r["motion"]][r["state"]], rel=1e-9)
+    # the designs of a report's table side by side are measured alike: with forces over the motion
+    # (tiny: 2 frames) each of them is evaluated over the motion from rest, the random ones are not
+    from kgarment.reproduce.evaluate import design_key
+    from kgarment.reproduce.pipeline import PATH_EVALUATED
+
+    cached = json.loads((rep / "evaluations.json").read_text())
+    for name in doc["experiments"]:
+        designs = np.load(rep / "designs" / f"{name}.npz")
+        for kind in PATH_EVALUATED:
+            key = design_key(designs[kind])
+            assert any(k.startswith(f"{name}@") and f"|{key}|" in k and k.endswith("|path2") for k in cached), kind
     cross = doc["cross"]["sleeve"]
     assert set(cross["rho_on"]) == {"arm_flexion.right", "arm_extension.right"}
     assert set(cross["rho_on"]["arm_flexion.right"]) == {"arm_extension.right", "all"}

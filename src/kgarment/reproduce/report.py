@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.design.reported import CANDIDATES, UNREACHED
 from kgarment.reproduce.catalog import DATA, EXPERIMENTS, PAPER_SHIRT_MATRIX, objectives_at_target
 from kgarment.reproduce.figures import emergent_figure, force_stats, rho_bars
 from kgarment.reproduce.targets import set_resistance
@@ -180,12 +181,17 @@ def build_markdown(doc: dict, figures: dict) -> str:
           "the fully reinforced garment in the same state, clutch energy and area included; "
           "ON / OFF = clutches on / off. *ours* is the iteration with the highest objective among those at the "
           "target area whose states all converged (BESO's objective is not monotone there; the paper samples designs "
-          "along a run likewise) and whose rho ON the evaluator reproduces over the motion from rest (at least 80% "
-          "of the run's in every motion; the run solves each iteration warm from the one before and can hold an "
-          "equilibrium the garment put on afresh does not reach); if none of the 4 best does, the best of them as "
+          "along a run likewise) and whose rho ON the evaluator reproduces over the motion from rest (at least "
+          f"{1 - UNREACHED:.0%} of the run's in every motion; the run solves each iteration warm from the one before "
+          "and can hold an equilibrium the garment put on afresh does not reach); if none of the "
+          f"{CANDIDATES} best does, the best of them as "
           "evaluated (the run's `final/evaluation.json`, `selection`); the last iteration is shown too. Every design is evaluated by the one design "
           "evaluator (`kgarment evaluate`'s numbers): each state from the skin-tight start and from the fully "
-          "reinforced garment's equilibrium, the lower-energy equilibrium kept. Clutch loads: per motion and "
+          "reinforced garment's equilibrium, the lower-energy equilibrium kept"
+          + (f"; ours, its last iteration, the manual and the compliance designs also over the motion from rest "
+             f"({res['path_frames']} frames), its end kept where lower (what a wearer meets), the random designs "
+             "from the two starts only" if res.get("path_frames") else "")
+          + ". Clutch loads: per motion and "
           "clutch the share of the ON - OFF garment energy with only that clutch ON, the share lost with only that "
           "clutch OFF (*needed*: clutches in series on one load path each have share ~0 and needed ~1) and the "
           "tension it carries with all ON. *manual* is the baseline a designer draws: strips from each clutch end to where the body "
