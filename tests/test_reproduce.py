@@ -229,7 +229,8 @@ def test_reproduce_tiny_sleeve(tmp_path, anny_body):
             if not r["from_path"]:
                 assert r["rho"] == pytest.approx(final["rho"][r["motion"]][r["state"]], rel=1e-9)
     # the designs of a report's table side by side are measured alike: with forces over the motion
-    # (tiny: 2 frames) each of them is evaluated over the motion from rest, the random ones are not
+    # (tiny: 2 frames) each of them is evaluated over the motion from rest (the random designs,
+    # outside the comparison of rows, from the two starts only)
     from kgarment.reproduce.evaluate import design_key
     from kgarment.reproduce.pipeline import PATH_EVALUATED
 
