@@ -18,6 +18,7 @@ import numpy as np
 from kgarment.design.reported import CANDIDATES, UNREACHED
 from kgarment.reproduce.catalog import DATA, EXPERIMENTS, PAPER_SHIRT_MATRIX, objectives_at_target
 from kgarment.reproduce.figures import emergent_figure, force_stats, rho_bars
+from kgarment.reproduce.pipeline import PATH_EVALUATED
 from kgarment.reproduce.targets import set_resistance
 from kgarment.reproduce.text import (
     assessment,
@@ -41,6 +42,14 @@ def _f(v, nd=2) -> str:
 def random_stats(evals: list[dict], motion: str, state: str) -> tuple[float, float]:
     v = np.array([e["rho"][motion][state] for e in evals])
     return (float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else 0.0) if len(v) else (np.nan, np.nan)
+
+
+def path_evaluated_words() -> str:
+    """The designs the pipeline evaluates over the motion from rest (``PATH_EVALUATED``), in words."""
+    words = {"ours": "ours", "ours_last": "its last iteration", "manual": "the manual baseline",
+             "compliance": "the compliance design"}
+    names = [words[k] for k in PATH_EVALUATED]
+    return ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else names[0]
 
 
 def design_rows(e: dict) -> list[list[str]]:
@@ -188,9 +197,9 @@ def build_markdown(doc: dict, figures: dict) -> str:
           "evaluated (the run's `final/evaluation.json`, `selection`); the last iteration is shown too. Every design is evaluated by the one design "
           "evaluator (`kgarment evaluate`'s numbers): each state from the skin-tight start and from the fully "
           "reinforced garment's equilibrium, the lower-energy equilibrium kept"
-          + (f"; ours, its last iteration, the manual and the compliance designs also over the motion from rest "
-             f"({res['path_frames']} frames), its end kept where lower (what a wearer meets), the random designs "
-             "from the two starts only" if res.get("path_frames") else "")
+          + (f"; {path_evaluated_words()} also over the motion from rest ({res['path_frames']} frames), its end "
+             "kept where lower (what a wearer meets), the random designs from the two starts only"
+             if res.get("path_frames") else "")
           + ". Clutch loads: per motion and "
           "clutch the share of the ON - OFF garment energy with only that clutch ON, the share lost with only that "
           "clutch OFF (*needed*: clutches in series on one load path each have share ~0 and needed ~1) and the "
