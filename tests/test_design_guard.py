@@ -16,7 +16,6 @@ from kgarment.design.guard import (
     collapsed,
     guard_step,
     last_accepted,
-    last_checked,
     paths_of,
     rejections_in_a_row,
 )
@@ -150,46 +149,3 @@ def test_a_rejected_step_is_made_again_from_the_last_accepted_design(tmp_path):
     rows = [dict(r, area=setup.params.target_area) for r in nxt.metrics]
     rows[-1]["objective"] = 10.0  # even with the best objective, a rejected step is not reported
     assert best_iteration(rows, setup.params.target_area, setup.params.er) != rows[-1]["iteration"]
-
-
-def test_a_drop_the_motion_from_rest_check_finds_is_judged_against_the_last_check():
-    """Where the motion-from-rest check ([solver] path_start) moved a state, the drop is the
-    steps' since the last checked iteration: judged against that iteration's reading, and if
-    it collapsed the run is made again from that iteration's design, towards the target of
-    the step after it, the faces removed since then ranked and half of them kept."""
-    setup, _ = _sheet_setup(objective="passive", max_iterations=20)
-    setup = dataclasses.replace(setup, guard=0.5)
-    st = initial_state(setup)
-    for _ in range(4):
-        st = iterate(setup, st)
-    assert last_checked(st.metrics) is None  # no check yet: a moved state has no reference
-    checked = 1
-    st = dataclasses.replace(st, metrics=tuple(dict(r, path_checked=r["iteration"] == checked) for r in st.metrics))
-    assert last_checked(st.metrics) == checked
-    solved = solve(setup, st)
-    row = metrics_row(setup, st, solved, st.reference, st.reference_stored)
-    filt = sensitivities(setup, st, solved)
-    moved = dataclasses.replace(solved, path_moved=("pull",))
-    # a drop within the guard against the check's reading goes through
-    mild = dict(row, **{"term[pull]": 0.6 * st.metrics[checked]["term[pull]"]})
-    assert advance(setup, st, moved, filt, mild, st.reference, st.reference_stored).metrics[-1]["rejected"] == ""
-    # the previous step's reading is not the reference: a collapse against it alone goes through
-    prev = dict(st.metrics[-1], **{"term[pull]": 10 * st.metrics[checked]["term[pull]"]})
-    st_prev = dataclasses.replace(st, metrics=st.metrics[:-1] + (prev,))
-    kept = dict(row, **{"term[pull]": 0.6 * st.metrics[checked]["term[pull]"]})
-    assert advance(setup, st_prev, moved, filt, kept, st.reference, st.reference_stored).metrics[-1]["rejected"] == ""
-    # a collapse against the check: back to the checked design
-    broke = dict(row, **{"term[pull]": 0.3 * st.metrics[checked]["term[pull]"]})
-    nxt = advance(setup, st, moved, filt, broke, st.reference, st.reference_stored)
-    assert broke["rejected"] == "pull" and math.isnan(nxt.objectives[-1])
-    assert nxt.target == st.metrics[checked + 1]["target"] != st.target
-    removed = np.flatnonzero(st.designs[checked] & ~(st.design > 0.5))
-    assert len(removed) > 1
-    best = removed[np.argsort(-st.accepted_alpha["pull"][removed], kind="stable")[: (len(removed) + 1) // 2]]
-    np.testing.assert_array_equal(np.flatnonzero(nxt.guarded), np.sort(best))
-    assert np.all(nxt.design[nxt.guarded] == 1.0)
-    # made again from the checked design towards that target: more area than the design the
-    # check judged, which was made towards a smaller one
-    share = float(setup.areas[nxt.design > 0.5].sum() / setup.areas.sum())
-    assert share > float(setup.areas[st.design > 0.5].sum() / setup.areas.sum())
-    assert share == pytest.approx(nxt.target, abs=0.05)

@@ -28,16 +28,6 @@ without that penalty (the ``gain[motion]`` column), and a ``lock:`` state that d
 converge does not keep it from judging a step: measured on the selective sleeve solved to
 1e-2 (2026-11-29), flexion's ON state fell from rho ON 1.20 to 0.30 in a step whose lock
 state had not converged, and the step went through unjudged, as did the next ones.
-
-With ``[solver] path_start`` every few iterations the ON states are also solved over their
-motion from rest (:mod:`kgarment.design.motion_start`), and the check may move a motion's
-state to the lower equilibrium a wearer reaches.  Such a drop is not the step's alone: the
-steps since the last check made it, so it is judged against the last *checked* iteration
-(:func:`last_checked`) and, if it collapsed, the run is made again from that iteration's
-design (towards the target of the step after it), the faces removed since then ranked and
-guarded as above.  Measured on the selective sleeve (`path_start = 5`, 2026-11-30): the check
-at 23.5% of the area read flexion rho ON 1.03 from rest, the one five steps later 0.22, and
-the run, judging no checked iteration, read 0.21 - 0.49 at the target area from then on.
 """
 
 from __future__ import annotations
@@ -78,17 +68,6 @@ def last_accepted(metrics) -> int | None:
     return None
 
 
-def last_checked(metrics) -> int | None:
-    """Index (into ``metrics``) of the last accepted iteration whose ON states were also
-    solved over their motion from rest (``path_checked``) and converged: the reference of a
-    check that moved a state (module doc), or None."""
-    for i in range(len(metrics) - 1, -1, -1):
-        r = metrics[i]
-        if r.get("path_checked") and not r.get(REJECTED) and not blinding(r.get("unconverged_states", "")):
-            return i
-    return None
-
-
 def rejections_in_a_row(metrics) -> int:
     """How many of the last rows were rejected steps."""
     n = 0
@@ -118,8 +97,7 @@ def paths_of(row: dict) -> dict[str, float]:
 
 def guard_step(metrics, terms: dict[str, float], guard: float, removed: np.ndarray, guarded: np.ndarray | None,
                areas: np.ndarray, target: float,
-               accepted_alpha: dict[str, np.ndarray] | None = None,
-               reference: int | None = None) -> tuple[list[str], np.ndarray | None]:
+               accepted_alpha: dict[str, np.ndarray] | None = None) -> tuple[list[str], np.ndarray | None]:
     """Whether this iteration's step is rejected: (the motions whose term collapsed, or []
     when the step is accepted; the guarded faces after it).
 
@@ -127,10 +105,9 @@ def guard_step(metrics, terms: dict[str, float], guard: float, removed: np.ndarr
     term, or its gain with lockout} (:func:`paths_of` of its row);  removed : (m,) bool
     faces of the last accepted design that this iteration's design lacks;  guarded : (m,) bool faces already guarded, or None;  areas : (m,) m^2;
     target : the target area share;  accepted_alpha : {motion: (m,) its sensitivities at the
-    last accepted iteration} (None: every removed face is guarded);  reference : the index
-    into ``metrics`` of the iteration the step is judged against (None: :func:`last_accepted`).
+    last accepted iteration} (None: every removed face is guarded).
     """
-    a = last_accepted(metrics) if reference is None else reference
+    a = last_accepted(metrics)
     if a is None or guard <= 0:
         return [], guarded
     motions = collapsed(terms, paths_of(metrics[a]), guard)

@@ -53,7 +53,6 @@ from kgarment.design.guard import (
     boosted,
     guard_step,
     last_accepted,
-    last_checked,
     paths_of,
     terms_of,
 )
@@ -139,8 +138,8 @@ class Solved:
     (m,) element sensitivities};  newton_iterations : of every solve, both starts with
     ``skin_start`` (not the motion from rest's);  path_checked : the ON states were also solved
     over their motion from rest (``path_start``);  path_moved : the motions whose ON state
-    that check replaced (the guard judges such an iteration against the last checked one,
-    not the last step: :mod:`kgarment.design.guard`).
+    that check replaced (the guard does not judge such an iteration: the drop is the
+    measurement's, not the step's; it becomes the guard's reference).
     """
 
     keys: list[StateKey]
@@ -320,15 +319,11 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
     names the motions whose load path it broke)."""
     p = setup.params
     rejected, guarded, base, accepted = [], st.guarded, st.design, st.accepted_alpha
-    # a state the motion-from-rest check moved is judged against the last check (guard module doc)
-    a = last_checked(st.metrics) if solved.path_moved else last_accepted(st.metrics)
-    if setup.guard > 0 and a is not None and not blinding(solved.unconverged):
+    a = last_accepted(st.metrics)
+    if setup.guard > 0 and a is not None and not blinding(solved.unconverged) and not solved.path_moved:
         removed = st.designs[a] & ~(st.design > 0.5)
-        paths = paths_of(row)
-        if solved.path_moved:
-            paths = {m: v for m, v in paths.items() if m in solved.path_moved}
-        rejected, guarded = guard_step(st.metrics, paths, setup.guard, removed, st.guarded, setup.areas,
-                                       st.target, st.accepted_alpha, reference=a)
+        rejected, guarded = guard_step(st.metrics, paths_of(row), setup.guard, removed, st.guarded, setup.areas,
+                                       st.target, st.accepted_alpha)
     if setup.guard > 0 and not rejected and not solved.unconverged:
         accepted = motion_sensitivities(setup.objective, solved.alpha, list(setup.motions), setup.lockout,
                                         setup.balance, solved.energy, combine_weights(setup, row))
@@ -338,15 +333,9 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
     done = converged(list(objectives), p.reached(row["area"]), p) or st.iteration + 1 >= p.max_iterations
     target, design, alpha = st.target, st.design, filt
     if rejected:
-        if solved.path_moved:
-            log.info("iteration %d: over the motion from rest %s lost the load path the check at iteration %d found; "
-                     "made again from iteration %d", st.iteration, ", ".join(rejected), a, a)
-        else:
-            log.info("iteration %d: the step broke the load path of %s; made again from iteration %d", st.iteration,
-                     ", ".join(rejected), a)
+        log.info("iteration %d: the step broke the load path of %s; made again from iteration %d", st.iteration,
+                 ", ".join(rejected), a)
         base, alpha = design_values(st.designs[a]), st.alpha_prev
-        if solved.path_moved and a + 1 < len(st.metrics):  # back past several steps: towards the next one's target
-            target = float(st.metrics[a + 1]["target"])
     if not done:
         if not rejected:
             target = next_target(st.target, p)

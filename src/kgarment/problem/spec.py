@@ -278,8 +278,7 @@ class SolverSpec:
     the warm-started path through the designs nor the two starts need find.  With
     ``skin_start`` the state becomes the evaluator's (the lower of its two starts and that
     end), without it the end is kept where lower by more than 1%; the later iterations start
-    from it, and the guard judges an iteration whose state the check moved against the last
-    checked iteration (``kgarment.design.guard``: back to its design if it collapsed).  About a
+    from it, and the guard does not judge an iteration whose state the check moved.  About a
     minute per check on the selective sleeve at subdivision 1; needs a posable body.
     workers : processes solving states in parallel; 0 = one per core, at most 8 (results do
     not depend on it).
