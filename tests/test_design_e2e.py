@@ -151,6 +151,33 @@ def test_force_over_the_motion(runs, anny_body, capsys):
     assert json.loads(written.read_text()) == doc
 
 
+def test_force_over_the_motion_until_the_frame_count_does_not_matter(runs, capsys):
+    """``evaluate --path K --converge``: K, 2K, ... frames until two counts agree; the file
+    holds the finest path and the counts' check, whose gap is the largest energy change at
+    the coarser path's frames over the ON energy at the target."""
+    from kgarment.design.path import PathReport
+    from kgarment.design.path_converge import frame_gap
+
+    cli, _, _ = runs
+    k = json.loads((cli / "final" / "evaluation.json").read_text())["iteration"]
+    assert main(["-q", "evaluate", str(cli), "--path", "1", "--no-loads"]) == 0
+    one = PathReport.from_json(json.loads((cli / f"path-{k}.json").read_text()))
+    assert main(["-q", "evaluate", str(cli), "--path", "1", "--converge", "--no-loads"]) == 0
+    out = capsys.readouterr().out
+    doc = json.loads((cli / f"path-{k}.json").read_text())
+    (check,) = doc["frames_checked"]
+    assert check["motion"] == "arm_flexion.right" and check["frames"][:2] == [1, 2]
+    n = check["frames"][-1]
+    assert [f["t"] for f in doc["frames"] if f["state"] == "on"] == pytest.approx([i / n for i in range(n + 1)])
+    assert check["converged"] == (check["gaps"][-1] <= check["tol"]) and (check["converged"] or n == 80)
+    if len(check["frames"]) == 2:  # the first gap is the 1-frame path's against the one written now
+        assert check["gaps"][0] == pytest.approx(frame_gap(one, PathReport.from_json(doc), "arm_flexion.right"),
+                                                 rel=1e-6, abs=1e-9)
+    assert "arm_flexion.right: frames 1 -> 2" in out
+    assert main(["-q", "evaluate", str(cli), "--converge"]) == 2  # --converge refines --path
+    assert "give --path K too" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("model", ["slip", "cable"])
 def test_force_over_the_motion_with_slipping_clutches(runs, capsys, model):
     """``evaluate --clutch-model slip|cable --holding-force N --path K``: the same run judged

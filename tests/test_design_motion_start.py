@@ -86,6 +86,17 @@ def test_bad_values_and_uses_are_one_line_errors(anny_body):
     p = parse_problem(tomllib.loads(SLEEVE.format(every=0)))
     g = build_garment(p, anny_body)
     assert setup_from_problem(p, anny_body, g, build_clutches(p, anny_body, g), "design").path_frames == ()
+    for bad in (0, 201, 2.5):
+        with pytest.raises(KgarmentError, match="path_frames"):
+            parse_problem(tomllib.loads(SLEEVE.format(every=3) + f"path_frames = {bad}\n"))
+
+
+def test_the_check_solves_the_frames_the_problem_asks_for(parts):
+    """``[solver] path_frames``: the check's motion from rest in that many frames, the
+    last one the target pose."""
+    p = parse_problem(tomllib.loads(SLEEVE.format(every=3) + "path_frames = 4\n"))
+    _, index = setup_from_problem(p, *parts[1:], "design").path_frames
+    assert [t for _, _, t in index] == pytest.approx([0.25, 0.5, 0.75, 1.0])
 
 
 def test_the_reported_design_is_one_whose_motion_was_solved(tmp_path):

@@ -72,9 +72,9 @@ DESIGN_RANGES = {"target_area": (0.01, 1.0), "er": (1e-4, 0.5), "ar_max": (1e-4,
                  "protect_clutch_margin": (0.0, 0.2), "lockout": (0.0, 10.0),
                  "balance": (0.0, 10.0), "guard": (0.0, 0.95), "settle": (0, 1000)}
 SOLVER_RANGES = {"tol": (1e-14, 1.0), "evolution_tol": (1e-14, 1.0), "max_iter": (1, 100000), "workers": (0, 256),
-                 "path_start": (0, 100000)}
+                 "path_start": (0, 100000), "path_frames": (1, 200)}
 PATH_FRAMES = 10  # frames of the motion from rest (the last one the target pose): `evaluate --path`'s default and
-                  # [solver] path_start's check (the evaluator's own, so that the loop reads what it reads)
+                  # [solver] path_frames' (path_start's check, the evaluator's own, so that the loop reads what it reads)
 SUBDIVISIONS = (0, 1, 2, 3)
 NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")  # a motion or clutch name: file names are made of it
 BODY_NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}")  # a wearer of a multi-body design ([body] phenotypes)

@@ -59,9 +59,8 @@ def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: b
 
 
 def print_summary(dr, seconds: float) -> None:
-    from kgarment.design.path import PATH_FRAMES
-
     st = dr.state
+    frames = dr.problem.solver.path_frames
     row = st.metrics[-1]
     print(f"\n{len(st.metrics)} iterations in {seconds:.0f} s; last iteration {rho_line(row, list(dr.setup.motions))}")
     if dr.evaluation is not None:  # and dr.selection: how finish chose it
@@ -75,13 +74,13 @@ def print_summary(dr, seconds: float) -> None:
             how += (f" that the evaluator reproduces; {n - 1} better one(s) not" if sel.reproduced else
                     f"; the evaluator reproduces none of the {n} best, this one is the best as evaluated")
         print(f"final design: iteration {k} ({how}), evaluated like kgarment evaluate {dr.run}"
-              + (f" --path {PATH_FRAMES}" if checked else "") + ":")
+              + (f" --path {frames}" if checked else "") + ":")
         print_evaluation(dr.evaluation)
     print(f"results in {dr.run}/: metrics.csv, metrics.json, progress.png, designs.npz, final/")
     for path in dr.paths:
         print(f"  {path}")
     if dr.evaluation is not None and dr.evaluation.loads is not None and not dr.setup.wearers:  # clutches to feel
-        print(f"next: the force each clutch carries over the motion: kgarment evaluate {dr.run} --path {PATH_FRAMES}; "
+        print(f"next: the force each clutch carries over the motion: kgarment evaluate {dr.run} --path {frames}; "
               f"which clutches to switch on for which motion: kgarment plan {dr.run}; cut files: "
               f"kgarment fabricate {dr.run}")
 
@@ -192,6 +191,8 @@ def cmd_evaluate(args) -> int:
     src = parse_design_source(args.design, run_required=True)
     p = override(load_problem(src.run / "problem.toml"), motions=args.motion, clutch_model=args.clutch_model,
                  holding_force=args.holding_force, buckle=args.buckle, friction=args.skin_friction)
+    if args.converge and not args.path:
+        raise KgarmentError("--converge refines the force over the motion: give --path K too")
     if args.path and p.body.phenotypes:
         raise KgarmentError("--path: the force over the motion is solved on one body; for a multi-body design "
                             "([body] phenotypes) leave --path out (each wearer is evaluated at the target pose)")
@@ -222,11 +223,25 @@ def cmd_evaluate(args) -> int:
         from kgarment.design.path import path_forces
         from kgarment.design.path_plot import path_plot
 
-        print(f"force over the motion: {args.path} frames from rest to the target pose, ON and OFF")
-        path = path_forces(ev, design, p, frames=args.path, report=lambda line: print(f"  {line}", flush=True))
+        def progress(line: str) -> None:
+            print(f"  {line}", flush=True)
+
+        checks = []
+        if args.converge:
+            from kgarment.design.path_converge import CONVERGE_TOL, MAX_FRAMES, converged_path
+
+            print(f"force over the motion: from {args.path} frames from rest to the target pose, doubled until two "
+                  f"counts agree within {100 * CONVERGE_TOL:.0f}% (at most {MAX_FRAMES}), ON and OFF")
+            path, checks = converged_path(ev, design, p, frames=args.path, report=progress)
+        else:
+            print(f"force over the motion: {args.path} frames from rest to the target pose, ON and OFF")
+            path = path_forces(ev, design, p, frames=args.path, report=progress)
         print(path.table())
-        atomic_write_text(stem.with_suffix(".json"), json_text({"run": str(src.run), "iteration": k,
-                                                                 **path.to_json()}))
+        for check in checks:
+            print(check.line())
+        atomic_write_text(stem.with_suffix(".json"), json_text({"run": str(src.run), "iteration": k, **path.to_json(),
+                                                                **({"frames_checked": [c.to_json() for c in checks]}
+                                                                   if checks else {})}))
         title = f"{src.run.name} iteration {k}: force over the motion" + {"slip": " (clutches slip)", "cable": " (cable clutches)"}.get(hw.model, "")
         print(f"wrote {path_plot(path, stem.with_suffix('.png'), title)}"
               f" and {stem.with_suffix('.json')}")
@@ -319,6 +334,10 @@ def add_parsers(sub) -> None:
     sp.add_argument("--path", type=FRAMES, metavar="K", help="also the force over the motion: K quasi-static frames "
                     "from rest to the target pose, ON and OFF (garment energy and every clutch's tension per "
                     "frame; plot and JSON written to RUN/path-ITERATION.png/.json; 10 is a good start)")
+    sp.add_argument("--converge", action="store_true", help="with --path K: solve each motion again over 2K, 4K, "
+                    "... frames until two counts agree (the energy at every frame within 5%% of the ON energy "
+                    "at the target; at most 80 frames) and report the finest; with skin friction a coarse step "
+                    "can carry the garment past where it slips")
     sp.add_argument("--phenotype", metavar="FIELD=V,...", action="append", help="also evaluate the design on "
                     "another body (repeatable): Anny with these phenotype fields changed (gender, age, muscle, "
                     "weight, height, proportions, each in [0, 1]), the garment cut from the same faces and the "

@@ -29,7 +29,7 @@ from kgarment.design.control import Control, control_check
 from kgarment.design.evaluate import DesignEvaluation, Evaluator
 from kgarment.design.loads import load_chart
 from kgarment.design.loop import LoopState, initial_state, iterate, run_loop
-from kgarment.design.path import PATH_FRAMES, path_forces
+from kgarment.design.path import path_forces
 from kgarment.design.refine import coarse_levels, run_coarse, transfer
 from kgarment.design.report import finish_run
 from kgarment.design.reported import Reported, select_reported
@@ -252,16 +252,16 @@ def evaluate_final(dr: DesignRun, evaluator: Evaluator | None = None,
     along the run beside the evaluator's, ``selection``: the candidates evaluated) and
     ``final/clutch_loads.png``.  These, not the metrics rows (solved warm along the run's
     path, to the design tolerance), are the run's final numbers.  A run with ``[solver]
-    path_start`` is evaluated like ``kgarment evaluate RUN --path 10`` (the motion's end a
-    start; its force over the motion under ``path`` in the JSON), and with ``path_frames``
-    like ``--path path_frames`` (the candidates too).  Returns (how the iteration was chosen,
+    path_start`` is evaluated like ``kgarment evaluate RUN --path F`` (F: ``[solver]
+    path_frames``; the motion's end a start; its force over the motion under ``path`` in the
+    JSON), and with ``path_frames`` like ``--path path_frames`` (the candidates too).  Returns (how the iteration was chosen,
     its evaluation, the files written)."""
     ev = evaluator or Evaluator(setup_from_problem(dr.problem, dr.body, dr.garment, dr.strips, "evaluate",
                                                    dr.setup.solver.device),
                                 run_store(dr.run))  # kgarment evaluate / plan RUN take them from there
     paths_of: dict[int, object] = {}
     # a run that designs against the motion is judged by it: --path's numbers
-    frames = path_frames or (PATH_FRAMES if dr.setup.path_start else 0)
+    frames = path_frames or (dr.problem.solver.path_frames if dr.setup.path_start else 0)
 
     def candidate(k: int) -> DesignEvaluation:
         design = design_values(dr.state.designs[k])

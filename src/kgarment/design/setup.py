@@ -340,13 +340,12 @@ def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose
     path_start = problem.solver.path_start if purpose == "design" and d.objective != "passive" else 0
     path_frames: tuple = ()
     if path_start:
-        from kgarment.constants import PATH_FRAMES
         from kgarment.design.frames import frame_motions
 
         if wearers:
             raise KgarmentError("[solver] path_start: the motion from rest is solved on one body; a multi-body "
                                 "design ([body] phenotypes) cannot use it")
-        path_frames = frame_motions(problem, list(problem.motions), PATH_FRAMES, rest=True)
+        path_frames = frame_motions(problem, list(problem.motions), problem.solver.path_frames, rest=True)
     setup = DesignSetup.build(model, motions, d.objective, d.beso, solver,
                               evolution_solver=evolution,
                               protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin),

@@ -280,6 +280,11 @@ class SolverSpec:
     end), without it the end is kept where lower by more than 1%; the later iterations start
     from it, and the guard does not judge an iteration whose state the check moved.  About a
     minute per check on the selective sleeve at subdivision 1; needs a posable body.
+    path_frames : the frames of that motion from rest (the last one the target pose), for the
+    check and the run's final evaluation (``evaluate --path``'s count).  With skin friction
+    the motion's end depends on it where the garment slips part way: the selective sleeve's
+    flexion read rho ON 1.09 over 10 frames, 0.80 over 20 and 0.77 over 40 for one design
+    (docs/notes/selective.md, "Frames of the motion from rest").
     workers : processes solving states in parallel; 0 = one per core, at most 8 (results do
     not depend on it).
     """
@@ -290,6 +295,7 @@ class SolverSpec:
     max_iter: int = C.MAX_NEWTON
     skin_start: bool = False
     path_start: int = 0
+    path_frames: int = C.PATH_FRAMES
     workers: int = 0
 
 
