@@ -118,7 +118,7 @@ def add_skin_friction(sp) -> None:
 
 def add_clutch_model(sp, buckle_default: str = "the problem's [clutches] buckle",
                      model_default: str = "the problem's [clutches] model") -> None:
-    """--clutch-model, --holding-force and --buckle (the [clutches] hardware, kgarment.sim.slip;
+    """--clutch-model, --holding-force, --buckle and --channel (the [clutches] hardware, kgarment.sim.slip;
     ``buckle_default`` and ``model_default``: what --help says happens without them)."""
     sp.add_argument("--clutch-model", choices=C.CLUTCH_MODELS, help="locked: an ON clutch never slips (the "
                     "paper's model); slip: it holds up to its holding force and slides at it beyond; cable: like slip, "
@@ -130,6 +130,11 @@ def add_clutch_model(sp, buckle_default: str = "the problem's [clutches] buckle"
     sp.add_argument("--buckle", action=argparse.BooleanOptionalAction, default=None,
                     help="ON clutch strips buckle: they take no compression (--no-buckle: they resist it as stiffly "
                     f"as tension, the paper's model; default: {buckle_default})")
+    sp.add_argument("--channel", action=argparse.BooleanOptionalAction, default=None,
+                    help="each clutch runs in a channel sewn along it to the garment, its centre line held as "
+                    "stiffly as reinforced fabric (--no-channel: snapped on at its ends only, the paper's build, "
+                    "where a strip pulled over a bent elbow can roll off sideways; default: the problem's "
+                    "[clutches] channel)")
 
 
 def overrides(args) -> dict:
@@ -139,7 +144,8 @@ def overrides(args) -> dict:
             "method": getattr(args, "solver", None), "tol": getattr(args, "tol", None),
             "max_iterations": getattr(args, "max_iterations", None),
             "clutch_model": getattr(args, "clutch_model", None), "holding_force": getattr(args, "holding_force", None),
-            "buckle": getattr(args, "buckle", None), "refine": getattr(args, "refine", False),
+            "buckle": getattr(args, "buckle", None), "channel": getattr(args, "channel", None),
+            "refine": getattr(args, "refine", False),
             "friction": getattr(args, "skin_friction", None)}
 
 

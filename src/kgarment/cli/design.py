@@ -190,7 +190,8 @@ def cmd_evaluate(args) -> int:
             check_output_file(path, flag, force=args.force, suffixes=suffixes)  # before the evaluation
     src = parse_design_source(args.design, run_required=True)
     p = override(load_problem(src.run / "problem.toml"), motions=args.motion, clutch_model=args.clutch_model,
-                 holding_force=args.holding_force, buckle=args.buckle, friction=args.skin_friction)
+                 holding_force=args.holding_force, buckle=args.buckle, friction=args.skin_friction,
+                 channel=args.channel)
     if args.converge and not args.path:
         raise KgarmentError("--converge refines the force over the motion: give --path K too")
     if args.path and p.body.phenotypes:
@@ -201,14 +202,16 @@ def cmd_evaluate(args) -> int:
             raise KgarmentError("--phenotype needs a run on the Anny body (body model 'anny')")
         phenotypes = [parse_phenotype(text, p.body.phenotype) for text in args.phenotype]
     hw = p.clutch_spec().hardware
-    other_hw = args.clutch_model or args.holding_force or args.buckle is not None
+    other_hw = args.clutch_model or args.holding_force or args.buckle is not None or args.channel is not None
     if other_hw:
         print("clutches: " + {"locked": "locked (never slip)", "slip": "slip at their holding force",
                               "cable": "pull-only cables between their ends, slipping at their holding force"}[hw.model]
-              + ("; the strips buckle (no compression)" if hw.buckle else "; the strips resist compression"))
+              + ("; the strips buckle (no compression)" if hw.buckle else "; the strips resist compression")
+              + ("; in channels sewn to the garment" if hw.channel else "; snapped on at their ends"))
     k = iteration_of(src)
     # another clutch model or skin friction than the run's gets --path files of its own (the run's path stays)
-    stem = src.run / (f"path-{k}" + (f"-{hw.model}" + ("-buckle" if hw.buckle else "") if other_hw else "")
+    stem = src.run / (f"path-{k}" + (f"-{hw.model}" + ("-buckle" if hw.buckle else "") + ("-channel" if hw.channel else "")
+                                     if other_hw else "")
                       + (f"-mu{args.skin_friction:g}" if args.skin_friction is not None else ""))
     for flag, f in (("--json", args.json), ("--plot", args.plot)):
         if args.path and f and Path(f).resolve() in (stem.with_suffix(".json").resolve(), stem.with_suffix(".png").resolve()):

@@ -52,7 +52,7 @@ def cmd_reproduce(args) -> int:
 
         doc = reproduce(out, res.name, args.experiments, args.device, progress,
                         {"preset": args.preset, "clutch_model": args.clutch_model, "holding_force": args.holding_force,
-                         "buckle": args.buckle})
+                         "buckle": args.buckle, "channel": args.channel})
     md, page = write_report(out, doc)
     print(f"done in {(time.time() - t0) / 60:.1f} min; report: {page} (Markdown twin: {md}); runs in {out / 'runs'}")
     return 0

@@ -81,7 +81,8 @@ def build_model(problem: Problem, garment: Garment, strips) -> SimModel:
     hw = problem.clutch_spec().hardware
     return build_sim_model(garment.rest_vertices, garment.faces, strips, preset=problem.materials.preset,
                            holding_force=holding_forces(hw, strips), clutch_buckle=hw.buckle,
-                           friction=problem.materials.skin_friction, clutch_cable=hw.model == "cable")
+                           friction=problem.materials.skin_friction, clutch_cable=hw.model == "cable",
+                           clutch_channel=hw.channel)
 
 
 def holding_forces(hw: ClutchHardware, strips) -> np.ndarray | None:

@@ -399,7 +399,7 @@ class _DesignOwn:
 
 
 HARDWARE = ("model", "holding_stress", "voltage", "dielectric_thickness", "permittivity", "friction",
-            "holding_force", "buckle")
+            "holding_force", "buckle", "channel")
 
 
 def _hardware(c: dict) -> ClutchHardware:
@@ -454,7 +454,7 @@ def override(problem: Problem, *, motions=None, template: str | None = None, sub
              preset: str | None = None, method: str | None = None, tol: float | None = None,
              max_iterations: int | None = None, clutch_model: str | None = None,
              holding_force: float | None = None, buckle: bool | None = None, refine: bool = False,
-             friction: float | None = None) -> Problem:
+             friction: float | None = None, channel: bool | None = None) -> Problem:
     """``problem`` with command-line overrides (None: keep the file's), validated with the
     same rules and messages as the problem file's fields."""
     changes: dict = {}
@@ -484,7 +484,7 @@ def override(problem: Problem, *, motions=None, template: str | None = None, sub
             raise KgarmentError("--refine: coarse-to-fine is for one body, not a multi-body design ([body] phenotypes)")
         d = changes.get("design", problem.design)
         changes["design"] = dataclasses.replace(d, levels=tuple(range(changes["garment"].subdivision)))
-    if clutch_model is not None or holding_force is not None or buckle is not None:
+    if clutch_model is not None or holding_force is not None or buckle is not None or channel is not None:
         c = problem.clutch_spec()
         raw = c.hardware.to_dict()
         if clutch_model == "locked":  # the file's holding force or stress does nothing then
@@ -495,5 +495,7 @@ def override(problem: Problem, *, motions=None, template: str | None = None, sub
             raw["holding_force"] = holding_force
         if buckle is not None:
             raw["buckle"] = bool(buckle)
+        if channel is not None:
+            raw["channel"] = bool(channel)
         changes["clutches"] = dataclasses.replace(c, hardware=_hardware(raw), default=False)
     return dataclasses.replace(problem, **changes)

@@ -69,6 +69,12 @@ class ClutchHardware:
         wrinkling relaxation on the strips too, and a slipping clutch's slider pulls only);
         False is the paper's model, where a clutch resists being shortened with its full
         stiffness (a 0.35 mm strip 1 cm wide buckles at well under 1 N).
+    channel : each clutch runs in a channel of the connecting material sewn along it to the
+        garment: its centre line is held to the garment as stiffly as reinforced fabric
+        (``kgarment.sim.model``, ``tie``), where without a channel (the paper's build: the
+        clutch snapped on at its two ends) it is held only weakly and a strip pulled taut over
+        a bent elbow can roll off sideways, restrained by skin friction alone (measured on the
+        selective sleeve: docs/notes/selective.md, "The outer strip rolls off the elbow").
     """
 
     model: str = "locked"
@@ -79,6 +85,7 @@ class ClutchHardware:
     friction: float = C.CLUTCH_FRICTION
     holding_force: tuple[tuple[str, float], ...] = ()
     buckle: bool = False
+    channel: bool = False
 
     def __str__(self) -> str:
         return ", ".join(f"{k} {v}" for k, v in self.to_dict().items()) or "model locked"

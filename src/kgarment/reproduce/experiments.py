@@ -59,7 +59,7 @@ def experiment_problem(exp: Experiment, res: Resolution, objective: str = "activ
                        overrides: dict | None = None) -> Problem:
     """The example problem of ``exp`` at resolution ``res`` (and with ``objective``, and the
     problem ``overrides`` of :func:`kgarment.problem.override` -- the material ``preset``,
-    the ``clutch_model``, the ``holding_force``, ``buckle`` -- where given; the balance term
+    the ``clutch_model``, the ``holding_force``, ``buckle``, ``channel`` -- where given; the balance term
     belongs to the active objective and is dropped for the others).  The clutch strips of
     the paper's experiments are the paper's (:data:`PAPER_BUCKLE`) unless the overrides say
     ``buckle``: the example files' buckling strips are for designing garments, the

@@ -113,6 +113,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
     entry = {"name": exp.name, "title": exp.title, "group": exp.group, "multi": exp.multi,
              "preset": problem.materials.preset, "clutch_model": problem.clutch_spec().hardware.model,
              "clutch_buckle": problem.clutch_spec().hardware.buckle, "skin_friction": problem.materials.skin_friction,
+             "clutch_channel": problem.clutch_spec().hardware.channel,
              "paper": {m: list(v) for m, v in exp.paper.items()}, "budget": budget,
              "garment": g.name, "faces": int(g.n_faces), "clutches": len(ev.strips), "motions": ev.motions,
              "states": ev.n_states, "run": _run_summary(ours), "compliance_run": _run_summary(comp),
@@ -360,9 +361,9 @@ def previous_results(out: Path, res, overrides: dict | None) -> dict:
             continue
         p = experiment_problem(BY_NAME[name], res, overrides=overrides)
         hw = p.clutch_spec().hardware
-        now = (p.materials.preset, hw.model, hw.buckle, p.materials.skin_friction)
+        now = (p.materials.preset, hw.model, hw.buckle, p.materials.skin_friction, hw.channel)
         then = (e.get("preset", "paper"), e.get("clutch_model", "locked"), bool(e.get("clutch_buckle", False)),
-                float(e.get("skin_friction", 0.0)))
+                float(e.get("skin_friction", 0.0)), bool(e.get("clutch_channel", False)))
         if now != then:
             raise KgarmentError(f"{path}: {name} was made with {_setting(then)}, not {_setting(now)}; "
                                 "give another --out")
@@ -370,12 +371,12 @@ def previous_results(out: Path, res, overrides: dict | None) -> dict:
     return kept
 
 
-def _setting(preset_model_buckle_friction: tuple) -> str:
+def _setting(preset_model_buckle_friction_channel: tuple) -> str:
     """'preset paper, clutch model locked' (and ', buckling clutch strips', ', skin friction
-    0.4') for an error line."""
-    preset, model, buckle, mu = preset_model_buckle_friction
+    0.4', ', clutches in channels') for an error line."""
+    preset, model, buckle, mu, channel = preset_model_buckle_friction_channel
     return (f"preset {preset}, clutch model {model}" + (", buckling clutch strips" if buckle else "")
-            + (f", skin friction {mu:g}" if mu else ""))
+            + (f", skin friction {mu:g}" if mu else "") + (", clutches in channels" if channel else ""))
 
 
 def _design_summary(ev: dict) -> dict:

@@ -109,7 +109,9 @@ def penalty_weights(model: SimModel, mats: StateMaterials, spr: SpringSet):
     anc = grp == GROUPS.index("anchor")
     k[anc] = pen.anchor * s_max[anc]
     tie = grp == GROUPS.index("tie")
-    k[tie] = pen.tie * model.preset.cloth_stiffness * model.vertex_area[spr.index[tie, 0]] / L2
+    s_tie = (pen.channel * model.preset.young_reinforced * model.preset.thick_reinforced if model.clutch_channel
+             else pen.tie * model.preset.cloth_stiffness)
+    k[tie] = s_tie * model.vertex_area[spr.index[tie, 0]] / L2
     return k_contact, k
 
 

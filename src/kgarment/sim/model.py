@@ -12,7 +12,8 @@ rest edge length:
 * contact   ``k_v = alpha_contact * s_v * A_v / L^2``      (energy ``k_v min(f, 0)^2``)
 * attach    ``k_f = alpha_attach * max_{v in f} s_v * A_f / L^2``
 * anchor    ``k   = alpha_anchor * max(s_v over the clutch vertex and its garment face)``
-* tie       ``k_v = alpha_tie * (Y t)_cloth * A_v / L^2``
+* tie       ``k_v = alpha_tie * (Y t)_cloth * A_v / L^2``; in a channel
+            ``k_v = alpha_channel * (Y t)_reinforced * A_v / L^2``
 
 Why: a membrane under tension ``T = s eps`` over a body of curvature ``kappa`` presses
 with ``p = T kappa``; on a vertex that is a force ``s eps kappa A_v`` against the penalty
@@ -26,7 +27,11 @@ attachment line), so the drift is ``~ eps L / (0.43 alpha_attach)`` (A_f ~ 0.43 
 neighbourhood covers a reinforced strip that ends on a cloth attachment face.  Anchors
 carry the clutch tension over a third of its width (~ 2 L / 3); ``alpha_anchor = 30``
 keeps their drift below eps * 0.02 L.  Ties only keep the strip on the garment, so they
-are scaled with plain cloth and kept weak (0.1).  Penalties of order 10 x the local
+are scaled with plain cloth and kept weak (0.1): the paper's build snaps a clutch on at its
+ends only.  A clutch sewn along its length into a channel of the connecting material
+(``clutch_channel``, ``[clutches] channel``) is held as stiffly as that material holds
+(``alpha_channel = 1`` times reinforced ``Y t``, 1000 x the weak tie in the ``paper`` preset):
+the strip then follows the garment under it instead of rolling off a bent elbow by itself.  Penalties of order 10 x the local
 membrane stiffness keep the Hessian well conditioned (the stiffness ratio between
 materials, up to ~8000 in the ``paper`` preset, is intrinsic to the problem).
 """
@@ -56,6 +61,7 @@ class PenaltyParams:
     attach: float = 20.0
     anchor: float = 30.0
     tie: float = 0.1
+    channel: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -85,6 +91,8 @@ class SimModel:
         elements relax like the cloth's and their sliders (``sim.slip``) only pull
     friction : skin-garment friction coefficient (``sim.friction``; 0: frictionless, the
         paper's model);  friction_slip : the slip (m) at which friction reaches its force
+    clutch_channel : each clutch's centre line is held to the garment by a channel of
+        reinforced fabric (the ``tie`` springs as stiff as that; module doc)
     clutch_cable : an ON clutch carries one pull-only force along its length (``sim.cable``)
         instead of stiffening its elements;  cable_paths : per clutch with ``clutch_cable``,
         (vertex ids (v,), W (P, v), rest length m) of its path along the strip
@@ -112,6 +120,7 @@ class SimModel:
     friction_slip: float = FRICTION_SLIP
     clutch_cable: bool = False
     cable_paths: tuple = field(default=(), repr=False)
+    clutch_channel: bool = False
 
     @property
     def slips(self) -> bool:
@@ -172,6 +181,7 @@ def build_model(
     clutch_buckle: bool = False,
     friction: float = 0.0,
     clutch_cable: bool = False,
+    clutch_channel: bool = False,
 ) -> SimModel:
     """Build the simulation model.
 
@@ -182,7 +192,8 @@ def build_model(
     compression (the paper's model: False);  friction : skin-garment friction coefficient
     (``sim.friction``; 0, the paper's model: frictionless);  clutch_cable : an ON clutch is
     a pull-only cable along its length (``sim.cable``; needs ``holding_force``), not a
-    stiff band (the paper's model: False).
+    stiff band (the paper's model: False);  clutch_channel : the clutches' centre lines held
+    to the garment by a channel of reinforced fabric (the paper's model: False, the weak tie).
     """
     X = np.ascontiguousarray(garment_vertices, dtype=np.float64)
     F = np.ascontiguousarray(garment_faces, dtype=np.int64)
@@ -242,7 +253,7 @@ def build_model(
                     pattern=pattern, penalties=penalties, holding_force=hold,
                     slip_coef=np.concatenate(coef) if coef else np.zeros((0, 3)), strip_width=np.array(width),
                     clutch_buckle=bool(clutch_buckle), friction=float(friction), clutch_cable=bool(clutch_cable),
-                    cable_paths=tuple(paths))
+                    cable_paths=tuple(paths), clutch_channel=bool(clutch_channel))
 
 
 @dataclass(frozen=True)
