@@ -87,7 +87,7 @@ def print_summary(dr, seconds: float) -> None:
 
 # what a new run takes and a resumed one cannot: it continues with its own problem.toml
 RESUME_IGNORES = ("problem", "motion", "garment", "subdivision", "preset", "solver", "tol", "max_iterations",
-                  "refine", "clutch_model", "holding_force", "buckle", "skin_friction", "force")
+                  "refine", "clutch_model", "holding_force", "buckle", "channel", "skin_friction", "force")
 
 
 def cmd_design(args) -> int:
