@@ -366,7 +366,13 @@ def test_a_reproduction_folder_keeps_only_its_own_resolution_and_preset(tmp_path
     sel = {"name": "sleeve_selective", "preset": "paper", "clutch_model": "cable", "clutch_buckle": True}
     (tmp_path / "data.json").write_text(json.dumps({**doc, "experiments": {"sleeve_selective": sel}}))
     with pytest.raises(KgarmentError, match="buckling clutch strips, not preset paper, clutch model cable, "
-                                            "buckling clutch strips, skin friction 0.4;"):
+                                            "buckling clutch strips, skin friction 0.4, clutches in channels;"):
+        previous_results(tmp_path, tiny, None)
+    # and the channels: the selective sleeve made with friction before its example sewed its clutches in
+    sel["skin_friction"] = 0.4
+    (tmp_path / "data.json").write_text(json.dumps({**doc, "experiments": {"sleeve_selective": sel}}))
+    with pytest.raises(KgarmentError, match="skin friction 0.4, not preset paper, clutch model cable, "
+                                            "buckling clutch strips, skin friction 0.4, clutches in channels;"):
         previous_results(tmp_path, tiny, None)
     (tmp_path / "data.json").write_text(json.dumps(doc))
     # a committed report (entries without run folders) is continued, not redone, unless named

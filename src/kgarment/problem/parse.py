@@ -493,9 +493,6 @@ def override(problem: Problem, *, motions=None, template: str | None = None, sub
             raw["model"] = clutch_model
         if holding_force is not None:
             raw["holding_force"] = holding_force
-        if buckle is not None:
-            raw["buckle"] = bool(buckle)
-        if channel is not None:
-            raw["channel"] = bool(channel)
+        raw.update({k: bool(v) for k, v in (("buckle", buckle), ("channel", channel)) if v is not None})
         changes["clutches"] = dataclasses.replace(c, hardware=_hardware(raw), default=False)
     return dataclasses.replace(problem, **changes)
