@@ -47,8 +47,8 @@ def cmd_studio(args) -> int:
               f"port {studio.server.get_port()} can use the studio", file=sys.stderr)
     if studio.server.get_port() != args.port:
         print(f"kgarment studio: port {args.port} is taken; serving on port {studio.server.get_port()} instead")
-    print(f"kgarment studio: open {studio.url} in a browser (Ctrl-C stops the server)")
-    try:
+    try:  # from the line that tells the URL on: a Ctrl-C right after it (a script, a test) stops cleanly
+        print(f"kgarment studio: open {studio.url} in a browser (Ctrl-C stops the server)", flush=True)
         while True:
             time.sleep(1.0)
     except KeyboardInterrupt:
