@@ -75,6 +75,9 @@ SOLVER_RANGES = {"tol": (1e-14, 1.0), "evolution_tol": (1e-14, 1.0), "max_iter":
                  "path_start": (0, 100000), "path_frames": (1, 200)}
 PATH_FRAMES = 10  # frames of the motion from rest (the last one the target pose): `evaluate --path`'s default and
                   # [solver] path_frames' (path_start's check, the evaluator's own, so that the loop reads what it reads)
+PATH_CONVERGE_TOL = 0.05  # `evaluate --path K --converge`: the largest energy change between two frame counts,
+                          # relative to the motion's ON energy at the target (kgarment.design.path_converge)
+PATH_MAX_FRAMES = 80      # and the frames of the finest path it solves
 SUBDIVISIONS = (0, 1, 2, 3)
 NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")  # a motion or clutch name: file names are made of it
 BODY_NAME = re.compile(r"[A-Za-z0-9_.-]{1,32}")  # a wearer of a multi-body design ([body] phenotypes)

@@ -6,6 +6,7 @@ import contextlib
 import time
 from pathlib import Path
 
+from kgarment import constants as C
 from kgarment.cli.common import (
     FRAMES,
     MAX_ITERATIONS,
@@ -231,10 +232,10 @@ def cmd_evaluate(args) -> int:
 
         checks = []
         if args.converge:
-            from kgarment.design.path_converge import CONVERGE_TOL, MAX_FRAMES, converged_path
+            from kgarment.design.path_converge import converged_path
 
             print(f"force over the motion: from {args.path} frames from rest to the target pose, doubled until two "
-                  f"counts agree within {100 * CONVERGE_TOL:.0f}% (at most {MAX_FRAMES}), ON and OFF")
+                  f"counts agree within {100 * C.PATH_CONVERGE_TOL:g}% (at most {C.PATH_MAX_FRAMES}), ON and OFF")
             path, checks = converged_path(ev, design, p, frames=args.path, report=progress)
         else:
             print(f"force over the motion: {args.path} frames from rest to the target pose, ON and OFF")
@@ -338,9 +339,10 @@ def add_parsers(sub) -> None:
                     "from rest to the target pose, ON and OFF (garment energy and every clutch's tension per "
                     "frame; plot and JSON written to RUN/path-ITERATION.png/.json; 10 is a good start)")
     sp.add_argument("--converge", action="store_true", help="with --path K: solve each motion again over 2K, 4K, "
-                    "... frames until two counts agree (the energy at every frame within 5%% of the ON energy "
-                    "at the target; at most 80 frames) and report the finest; with skin friction a coarse step "
-                    "can carry the garment past where it slips")
+                    "... frames until two counts agree (the energy at every frame within "
+                    f"{100 * C.PATH_CONVERGE_TOL:g}%% of the ON energy at the target; at most {C.PATH_MAX_FRAMES} "
+                    "frames) and report the finest; with skin friction a coarse step can carry the garment past "
+                    "where it slips")
     sp.add_argument("--phenotype", metavar="FIELD=V,...", action="append", help="also evaluate the design on "
                     "another body (repeatable): Anny with these phenotype fields changed (gender, age, muscle, "
                     "weight, height, proportions, each in [0, 1]), the garment cut from the same faces and the "

@@ -23,12 +23,10 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from kgarment.constants import PATH_FRAMES
+from kgarment.constants import PATH_CONVERGE_TOL, PATH_FRAMES, PATH_MAX_FRAMES
 from kgarment.design.path import STATES, PathReport, path_forces
 
 log = logging.getLogger(__name__)
-CONVERGE_TOL = 0.05   # the largest energy change between two frame counts, relative to the ON energy at the target
-MAX_FRAMES = 80       # frames of the finest path solved
 
 
 @dataclass(frozen=True)
@@ -62,7 +60,8 @@ def frame_gap(coarse: PathReport, fine: PathReport, motion: str) -> float:
     """The largest change of the garment's energy (ON and OFF) at the frames of ``coarse``
     (rest excluded) from ``coarse`` to ``fine`` in ``motion``, relative to ``fine``'s ON
     energy at the target pose; every ``t`` of ``coarse`` must be one of ``fine``'s."""
-    scale = abs(fine.curve(motion, "on")[-1].energy_J) if fine.curve(motion, "on") else 0.0
+    on = fine.curve(motion, "on")
+    scale = abs(on[-1].energy_J) if on else 0.0
     gap = 0.0
     for s in STATES:
         at = {round(f.t, 9): f.energy_J for f in fine.curve(motion, s)}
@@ -86,7 +85,7 @@ def merged(reports: dict[str, PathReport]) -> PathReport:
 
 
 def converged_path(evaluator, design, problem, motions=None, frames: int = PATH_FRAMES, *,
-                   tol: float = CONVERGE_TOL, max_frames: int = MAX_FRAMES,
+                   tol: float = PATH_CONVERGE_TOL, max_frames: int = PATH_MAX_FRAMES,
                    report: Callable[[str], None] | None = None, attached=None
                    ) -> tuple[PathReport, list[FrameCheck]]:
     """The path of ``design`` (m,) over each motion of ``motions`` (default: the
