@@ -133,7 +133,11 @@ def render_png(layers: list[Layer], path, views=STANDARD_VIEWS, height_px: int =
     dpi = 100
     panel_h = height_px / dpi
     fig_w = panel_h * aspect * len(views) + (1.0 if colorbar or legend else 0.0)
-    fig, axes = plt.subplots(1, len(views), figsize=(fig_w, panel_h + (0.4 if title else 0)), dpi=dpi)
+    fig_h = panel_h + (0.4 if title else 0)
+    # the views' labels and the title take fixed inches at the top, however small the picture
+    # (at 260 px a share of the height left the title over the labels)
+    top = 1 - ((0.25 + 0.3) if title else 0.22) / fig_h
+    fig, axes = plt.subplots(1, len(views), figsize=(fig_w, fig_h), dpi=dpi)
     axes = np.atleast_1d(axes)
     for ax, (polys, cols), view, i in zip(axes, projected, views, range(len(views))):
         ax.add_artist(_flat_triangles(polys, cols))
@@ -144,7 +148,7 @@ def render_png(layers: list[Layer], path, views=STANDARD_VIEWS, height_px: int =
         ax.axis("off")
         ax.set_title(labels[i] if labels else view, fontsize=9)
     if title:
-        fig.suptitle(title, fontsize=11)
+        fig.suptitle(title, fontsize=11, y=1 - 0.04 / fig_h, va="top")
     if colorbar:
         cmap, vmin, vmax, label = colorbar
         sm = plt.cm.ScalarMappable(cmap=cmap, norm=matplotlib.colors.Normalize(vmin, vmax))
@@ -152,11 +156,11 @@ def render_png(layers: list[Layer], path, views=STANDARD_VIEWS, height_px: int =
     elif legend:
         from matplotlib.patches import Patch
 
-        fig.subplots_adjust(left=0, right=1 - 1.0 / fig_w, bottom=0, top=0.93 if title else 0.97, wspace=0)
+        fig.subplots_adjust(left=0, right=1 - 1.0 / fig_w, bottom=0, top=top, wspace=0)
         fig.legend(handles=[Patch(facecolor=c, edgecolor="0.5", label=lab) for lab, c in legend],
                    loc="center right", fontsize=8, frameon=False)
     else:
-        fig.subplots_adjust(left=0, right=1, bottom=0, top=0.93 if title else 0.97, wspace=0)
+        fig.subplots_adjust(left=0, right=1, bottom=0, top=top, wspace=0)
     fig.savefig(path, dpi=dpi, facecolor="white")
     plt.close(fig)
     return path
