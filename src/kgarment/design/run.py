@@ -332,10 +332,13 @@ def progress_plot(run: Path, rows: list[dict]) -> Path:
     ax2 = ax.twinx()
     ax2.plot(it, [100 * r["area"] for r in rows], ":", color="grey", label="area")
     ax2.set_ylabel("reinforced area (%)", color="grey")
-    ax.legend(fontsize=7, loc="upper left")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.grid(alpha=0.3)
-    fig.tight_layout()
+    # the legend beside the plot, past the area axis (inside, it hid the first iterations' curves)
+    fig.set_size_inches(10, 4)
+    fig.tight_layout(rect=(0, 0, 0.68, 1))
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=7, loc="upper left", bbox_to_anchor=(0.69, 0.95),
+               frameon=False)
     path = run / "progress.png"
     fig.savefig(path)
     plt.close(fig)
