@@ -16,7 +16,6 @@ import pytest
 from kgarment.design.loop import initial_state, solve
 from kgarment.design.objective import combine_sensitivities, objective_value
 from kgarment.design.setup import DesignSetup
-from kgarment.garment.topology import triangle_areas
 from kgarment.problem import BesoParams
 from kgarment.sim import SolverOptions, build_model
 from kgarment.sim.synthetic import Tube
@@ -66,7 +65,7 @@ def perturbed():
     warm = [r.x for r in solved.results]
     plus = setup.solve(design + h * u, states, warm_start=warm, options=opts)
     minus = setup.solve(design - h * u, states, warm_start=warm, options=opts)
-    return setup, triangle_areas(tube.vertices, F), test, u, h, solved, plus, minus
+    return setup, setup.areas, test, u, h, solved, plus, minus
 
 
 def test_every_states_sensitivity_is_its_energys_derivative(perturbed):
