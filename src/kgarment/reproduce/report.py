@@ -186,7 +186,8 @@ def build_markdown(doc: dict, figures: dict) -> str:
     md = ["# kgarment reproduces *Computational Design of Active Kinesthetic Garments* (UIST 2022)", "",
           f"Resolution **{res['name']}** (garment subdivision {sub}{er}), material preset "
           f"**{doc.get('preset', 'paper')}**{preset_note(doc)}, {strips_note(doc)}, {res['seeds']} random seeds. "
-          "rho is the relative energy density of method.md section 7: energy per reinforced area over that of "
+          "rho is the relative energy density of the method (kgarment's manual, docs/method/index.md, "
+          "'The relative energy density'): energy per reinforced area over that of "
           "the fully reinforced garment in the same state, clutch energy and area included; "
           "ON / OFF = clutches on / off. *ours* is the iteration with the highest objective among those at the "
           "target area whose states all converged (BESO's objective is not monotone there; the paper samples designs "
@@ -265,8 +266,8 @@ def build_markdown(doc: dict, figures: dict) -> str:
     if "emergent" in figures:
         md += [f"![our design against the compliance and manual baselines]({figures['emergent']})", ""]
     md += ["Parts are connected components of reinforcement (edge adjacency), counted with a clutch "
-           "joining the parts its two ends sit on (method.md: a good design's clutches link otherwise "
-           "disconnected parts) and without; a design without islands has one clutch-linked part. A clutch "
+           "joining the parts its two ends sit on (the method's emergent properties: a good design's "
+           "clutches link otherwise disconnected parts) and without; a design without islands has one clutch-linked part. A clutch "
            "end counts as supported when most garment faces under its anchors are reinforced.", ""]
     md += ["## Performance", ""] + performance_rows(doc) + [""]
     return "\n".join(md)
