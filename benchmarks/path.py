@@ -1,7 +1,7 @@
 """Benchmark: the force over the motion (``kgarment evaluate RUN --path K``) of a design.
 
 Loads a finished run (default ``runs/demo``, the main job: ``kgarment demo`` makes it),
-builds its evaluator, and times :func:`kgarment.design.path.path_forces` with K frames
+builds its evaluator, and times :func:`kgarment.evaluate.path.path_forces` with K frames
 (default 10) on every motion of the run, ON and OFF: posing the body and the garment in
 the frames, then the frame-by-frame solves and the clutch tensions.  As ``kgarment
 evaluate RUN --path K`` does, the evaluator reads the run's equilibria (``RUN/equilibria``)
@@ -25,11 +25,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from kgarment.design import Evaluator, load_design, parse_design_source
+from kgarment.case.store import FOLDER, EquilibriumStore
+from kgarment.design import load_design, parse_design_source
 from kgarment.design.driver import run_inputs
-from kgarment.design.path import frame_motions, path_forces
 from kgarment.design.run import iteration_of
-from kgarment.design.store import FOLDER, EquilibriumStore
+from kgarment.evaluate import Evaluator
+from kgarment.evaluate.path import frame_motions, path_forces
 from kgarment.problem import load_problem
 
 RESULTS = Path(__file__).resolve().parent / "results.json"

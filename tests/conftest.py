@@ -25,7 +25,7 @@ def pytest_configure(config):
     caches (Anny's own, ~2 minutes on a fresh machine, and kgarment's) before the workers
     start, so that they are built once and not by every worker at the same time.
 
-    The fully reinforced garments' solves (``kgarment.design.store.shared_store``) go to a
+    The fully reinforced garments' solves (``kgarment.case.store.shared_store``) go to a
     folder of this session's own (the workers inherit it), not to the machine's cache: every
     test run solves them once, as a fresh machine does, whatever ran before."""
     if getattr(config, "workerinput", None) is None:

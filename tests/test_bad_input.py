@@ -489,8 +489,8 @@ def test_a_run_designed_under_another_simulation_model_is_not_resumed(tmp_path, 
     the garment started on the body's mesh) is not resumed under model 2: one line, exit
     2, the folder untouched; a checkpoint of this model passes the check."""
     from kgarment.constants import SIM_MODEL
-    from kgarment.design.loop import LoopState
     from kgarment.design.run import check_model, checkpoint_model, save_checkpoint
+    from kgarment.optimize.loop import LoopState
 
     monkeypatch.chdir(tmp_path)
     run = tmp_path / "run"

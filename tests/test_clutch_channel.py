@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from tiny_problems import TINY_SLEEVE
 
-from kgarment.design.setup import setup_from_problem
+from kgarment.case import case_from_problem
 from kgarment.errors import KgarmentError
 from kgarment.problem import build_clutches, build_garment, override, parse_problem
 from kgarment.problem.build import build_model
@@ -40,7 +40,7 @@ def solved(anny_body):
         g = build_garment(p, anny_body)
         model = build_model(p, g, build_clutches(p, anny_body, g))
         assert model.clutch_channel == channel
-        setup = setup_from_problem(p, anny_body, g, build_clutches(p, anny_body, g), "evaluate")
+        setup = case_from_problem(p, anny_body, g, build_clutches(p, anny_body, g))
         st = SimState.create(setup.motions["arm_flexion.right"], [1.0], name="on")
         (r,) = solve_states(model, np.ones(model.n_faces), [st], options=setup.solver)
         assert r.converged

@@ -6,9 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kgarment.design.objective import combine_sensitivities, objective_value
-from kgarment.design.setup import DesignSetup
-from kgarment.problem import BesoParams
+from kgarment.case import Case
+from kgarment.optimize.objective import combine_sensitivities, objective_value
 from kgarment.sim import SolverOptions, build_model
 from kgarment.sim.synthetic import Tube
 
@@ -18,7 +17,7 @@ def tube_setup(activation=None, lockout=0.0, objective="active"):
     clutches = [tube.clutch("a", 0.0, 0.08, 0.22, 0.01, 8), tube.clutch("b", np.pi, 0.08, 0.22, 0.01, 8)]
     model = build_model(tube.vertices, tube.faces, clutches, preset="paper")
     motions = {"pull": tube.motion("pull", 0.05, 0.0), "twist": tube.motion("twist", 0.0, 0.3)}
-    return DesignSetup.build(model, motions, objective, BesoParams(), SolverOptions(), activation=activation,
+    return Case.build(model, motions, objective, SolverOptions(), activation=activation,
                              lockout=lockout)
 
 
@@ -70,7 +69,7 @@ def test_a_set_two_motions_share_is_one_lock_state():
     motions = {"pull": tube.motion("pull", 0.05, 0.0), "twist": tube.motion("twist", 0.0, 0.3),
                "twist@0.33": tube.motion("twist@0.33", 0.0, 0.1)}
     sets = {"pull": np.array([1.0, 0.0]), "twist": np.array([0.0, 1.0]), "twist@0.33": np.array([0.0, 1.0])}
-    s = DesignSetup.build(model, motions, "active", BesoParams(), SolverOptions(), activation=sets, lockout=1.0)
+    s = Case.build(model, motions, "active", SolverOptions(), activation=sets, lockout=1.0)
     locks = [k for k, _ in s.states() if k[1].startswith("lock:")]
     assert locks == [("pull", "lock:twist"), ("twist", "lock:pull"), ("twist@0.33", "lock:pull")]
 
@@ -95,7 +94,7 @@ def test_the_lockout_subtracts_what_other_sets_store():
 def test_balance_adds_one_solo_state_per_clutch_of_a_set():
     """With a balance, each clutch of a motion's set is also solved alone ON (at its set's
     value); a set of one clutch needs none (its share is 1 by definition)."""
-    keyed = dict(DesignSetup.build(tube_setup().model, tube_setup().motions, "active", BesoParams(), SolverOptions(),
+    keyed = dict(Case.build(tube_setup().model, tube_setup().motions, "active", SolverOptions(),
                                    activation={"twist": np.array([0.0, 0.5])}, balance=0.3).states())
     assert list(keyed) == [("pull", "on"), ("pull", "off"), ("pull", "solo:a"), ("pull", "solo:b"),
                            ("twist", "on"), ("twist", "off")]
@@ -109,8 +108,8 @@ def test_balance_pushes_only_clutches_that_carry_little():
     of the scalar balance term h (finite differences, G held); a clutch at or above the share
     tau gets none (the strongest is not counted twice); the sensitivity adds each weighted
     solo gain scaled to the size of the ON - OFF gain's."""
-    from kgarment.design.objective import BALANCE_SHARE as tau
-    from kgarment.design.objective import balance_weights
+    from kgarment.optimize.objective import BALANCE_SHARE as tau
+    from kgarment.optimize.objective import balance_weights
 
     e = {("pull", "on"): 5.0, ("pull", "off"): 1.0, ("pull", "solo:a"): 4.9, ("pull", "solo:b"): 1.2,
          ("pull", "solo:c"): 0.9}
@@ -145,8 +144,8 @@ def test_the_control_table_agrees_with_the_evaluation_on_designed_and_locking_se
     is its evaluated ON state and the other motion's set its evaluated lock state (solved
     the evaluator's way, the same equilibria), so the two never give two energies for one
     state."""
-    from kgarment.design import Evaluator
-    from kgarment.design.plan import make_plan
+    from kgarment.evaluate import Evaluator
+    from kgarment.evaluate.plan import make_plan
 
     sets = {"pull": np.array([1.0, 0.0]), "twist": np.array([0.0, 1.0])}
     ev = Evaluator(tube_setup(sets, lockout=1.0))

@@ -13,9 +13,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from kgarment.design.loop import initial_state, solve
-from kgarment.design.objective import combine_sensitivities, objective_value
-from kgarment.design.setup import DesignSetup
+from kgarment.optimize.loop import initial_state, solve
+from kgarment.optimize.objective import combine_sensitivities, objective_value
+from kgarment.optimize.setup import DesignSetup
 from kgarment.problem import BesoParams
 from kgarment.sim import SolverOptions, build_model
 from kgarment.sim.synthetic import Tube
@@ -60,12 +60,12 @@ def perturbed():
     u[test] = np.random.default_rng(0).uniform(0.2, 1.0, len(test)) * design[test]
     st = dataclasses.replace(initial_state(setup), design=design)
     solved = solve(setup, st)
-    states = [s for _, s in setup.states()]
+    states = [s for _, s in setup.case.states()]
     h = 1e-3
     warm = [r.x for r in solved.results]
-    plus = setup.solve(design + h * u, states, warm_start=warm, options=opts)
-    minus = setup.solve(design - h * u, states, warm_start=warm, options=opts)
-    return setup, setup.areas, test, u, h, solved, plus, minus
+    plus = setup.case.solve(design + h * u, states, warm_start=warm, options=opts)
+    minus = setup.case.solve(design - h * u, states, warm_start=warm, options=opts)
+    return setup, setup.case.areas, test, u, h, solved, plus, minus
 
 
 def test_every_states_sensitivity_is_its_energys_derivative(perturbed):
@@ -73,7 +73,7 @@ def test_every_states_sensitivity_is_its_energys_derivative(perturbed):
     assert len(test) >= 6 and set(solved.keys) == {("pull", "on"), ("pull", "off"), ("pull", "lock:twist"),
                                                     ("twist", "on"), ("twist", "off"), ("twist", "lock:pull")}
     assert all(r.converged for r in [*solved.results, *plus, *minus])
-    p = setup.model.preset.penal
+    p = setup.case.model.preset.penal
     for k, rp, rm in zip(solved.keys, plus, minus):
         fd = (rp.total_energy - rm.total_energy) / (2 * h)
         assert fd == pytest.approx(p * float(np.sum(area * solved.alpha[k] * u)), rel=1e-4), k
@@ -85,7 +85,7 @@ def test_the_combined_sensitivities_are_the_objectives_derivative(perturbed):
     largest ON sensitivity (method.md: the per-motion normalisation), differentiated by finite
     differences of the equilibrium energies, against the loop's combined sensitivities."""
     setup, area, _, u, h, solved, plus, minus = perturbed
-    motions = list(setup.motions)
+    motions = list(setup.case.motions)
     norm = {(mo, "on"): float(solved.alpha[(mo, "on")].max()) for mo in motions}
     combined = combine_sensitivities("active", solved.alpha, motions, LOCKOUT)
     value = {}
@@ -93,7 +93,7 @@ def test_the_combined_sensitivities_are_the_objectives_derivative(perturbed):
         energy = {k: r.total_energy for k, r in zip(solved.keys, results)}
         value[sign] = objective_value("active", energy, norm, motions, LOCKOUT)
     fd = (value[1] - value[-1]) / (2 * h)
-    assert fd == pytest.approx(setup.model.preset.penal * float(np.sum(area * combined * u)), rel=1e-4)
+    assert fd == pytest.approx(setup.case.model.preset.penal * float(np.sum(area * combined * u)), rel=1e-4)
     # the lock states count: without the lockout the derivative differs
     plain = combine_sensitivities("active", solved.alpha, motions, 0.0)
     assert abs(float(np.sum(area * (plain - combined) * u))) > 1e-3 * abs(float(np.sum(area * combined * u)))

@@ -11,10 +11,10 @@ import pytest
 from test_design_activation import tube_setup
 from tiny_problems import TINY_SLEEVE
 
-from kgarment.design.objective import combine_sensitivities, objective_value
-from kgarment.design.setup import DesignSetup
+from kgarment.case import Case
 from kgarment.errors import KgarmentError
-from kgarment.problem import BesoParams, parse_problem, problem_to_dict
+from kgarment.optimize.objective import combine_sensitivities, objective_value
+from kgarment.problem import parse_problem, problem_to_dict
 from kgarment.problem.spec import balance_weight
 from kgarment.sim import SolverOptions
 
@@ -56,7 +56,7 @@ def test_a_design_state_takes_its_motions_weight():
 
 def test_solo_states_only_in_the_motions_named():
     s = tube_setup()
-    keyed = dict(DesignSetup.build(s.model, s.motions, "active", BesoParams(), SolverOptions(),
+    keyed = dict(Case.build(s.model, s.motions, "active", SolverOptions(),
                                    balance={"twist": 0.3}).states())
     assert list(keyed) == [("pull", "on"), ("pull", "off"), ("twist", "on"), ("twist", "off"),
                            ("twist", "solo:a"), ("twist", "solo:b")]

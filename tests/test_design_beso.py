@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from kgarment.design.beso import (
+from kgarment.evaluate.metrics import Stored, clutch_end_support, islands, relative_energy_density
+from kgarment.optimize.beso import (
     BesoParams,
     converged,
     expected_iterations,
@@ -20,8 +21,7 @@ from kgarment.design.beso import (
     settled_ar,
     update_design,
 )
-from kgarment.design.metrics import Stored, clutch_end_support, islands, relative_energy_density
-from kgarment.design.objective import combine_sensitivities
+from kgarment.optimize.objective import combine_sensitivities
 
 
 def _sheet(n=12):

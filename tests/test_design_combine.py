@@ -1,10 +1,15 @@
-"""How the motions' terms combine (``[design] combine``, kgarment.design.objective)."""
+"""How the motions' terms combine (``[design] combine``, kgarment.optimize.objective)."""
 
 from __future__ import annotations
 
 import pytest
 
-from kgarment.design.objective import PRODUCT_FLOOR, combined_objective, motion_weights, objective_value
+from kgarment.optimize.objective import (
+    PRODUCT_FLOOR,
+    combined_objective,
+    motion_weights,
+    objective_value,
+)
 from kgarment.problem import parse_problem, problem_to_dict
 
 

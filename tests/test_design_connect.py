@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from kgarment.design.connect import anchored, connect_design
-from kgarment.design.metrics import clutch_end_support, islands
+from kgarment.evaluate.metrics import clutch_end_support, islands
 from kgarment.garment.topology import face_adjacency, triangle_areas
+from kgarment.optimize.connect import anchored, connect_design
 
 
 def strip(nx: int = 61, ny: int = 21, length: float = 0.3, width: float = 0.1):
@@ -120,7 +120,7 @@ def test_clutches_never_on_together_are_each_held_without_the_other():
 
 def reached(f, solid, start, links):
     """(m,) bool faces of ``solid`` joined to ``start`` through solid faces and ``links``."""
-    from kgarment.design.connect import _reachable, link_graph
+    from kgarment.optimize.connect import _reachable, link_graph
 
     return _reachable(link_graph(face_adjacency(f), links), solid, int(start[0]))
 

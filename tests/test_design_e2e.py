@@ -13,8 +13,9 @@ from tiny_problems import TINY_SLEEVE
 
 from kgarment.cli import main
 from kgarment.constants import DESIGN_TOL, EVOLUTION_TOL, target_reached
-from kgarment.design import Evaluator, finish, load_design, load_design_history, open_run
+from kgarment.design import finish, load_design, load_design_history, open_run
 from kgarment.errors import KgarmentError
+from kgarment.evaluate import Evaluator
 from kgarment.problem import load_problem
 
 SLEEVE = TINY_SLEEVE + """[design]
@@ -51,7 +52,7 @@ def test_the_run_does_not_depend_on_how_it_is_driven(runs):
         k = int(z["iteration"])
         np.testing.assert_array_equal(z["design"] > 0.5, load_design_history(cli)[k])
     rows = _rows(cli)
-    p = dr.setup.params
+    p = dr.setup.beso.params
     at_target = [r for r in rows if target_reached(r["area"], p.target_area, p.er) and not r["unconverged_states"]]
     assert rows[k] in at_target and rows[k]["objective"] == max(r["objective"] for r in at_target)
 
@@ -60,7 +61,7 @@ def test_the_area_follows_the_schedule(runs):
     """Target of iteration k: max(A*, (1 - ER)^k) (method.md section 6); the reinforced
     area meets it to within the faces of one update."""
     _, lib, dr = runs
-    p = dr.setup.params
+    p = dr.setup.beso.params
     rows = _rows(lib)
     assert len(rows) == p.max_iterations
     for k, r in enumerate(rows):
@@ -105,13 +106,13 @@ def test_force_over_the_motion(runs, anny_body, capsys):
     """``evaluate --path K``: K frames from rest to the target pose, ON and OFF; the last
     frame is the target pose itself (skinning transforms interpolated to the end); the garment
     stores more energy the further the arm bends; the plot and the JSON are written."""
-    from kgarment.design.path import frame_motions
+    from kgarment.evaluate.path import frame_motions
 
     cli, _, dr = runs
     motions, index = frame_motions(dr.problem, ["arm_flexion.right"], 2)
     assert [(m, t) for _, m, t in index] == [("arm_flexion.right", 0.5), ("arm_flexion.right", 1.0)]
     ev = Evaluator.from_problem(dr.problem, body=anny_body)
-    target = ev.setup.motions["arm_flexion.right"]
+    target = ev.case.motions["arm_flexion.right"]
     np.testing.assert_allclose(motions[index[-1][0]].garment_x0, target.garment_x0, atol=1e-9)
     assert not np.allclose(motions[index[0][0]].garment_x0, target.garment_x0, atol=1e-3)
     assert main(["-q", "evaluate", str(cli), "--path", "2", "--no-loads", "--json", str(cli / "with-path.json")]) == 0
@@ -155,8 +156,8 @@ def test_force_over_the_motion_until_the_frame_count_does_not_matter(runs, capsy
     """``evaluate --path K --converge``: K, 2K, ... frames until two counts agree; the file
     holds the finest path and the counts' check, whose gap is the largest energy change at
     the coarser path's frames over the ON energy at the target."""
-    from kgarment.design.path import PathReport
-    from kgarment.design.path_converge import frame_gap
+    from kgarment.evaluate.path import PathReport
+    from kgarment.evaluate.path_converge import frame_gap
 
     cli, _, _ = runs
     k = json.loads((cli / "final" / "evaluation.json").read_text())["iteration"]

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from tiny_problems import TINY_SLEEVE
 
-from kgarment.design.frames import frame_motions
-from kgarment.design.setup import setup_from_problem
+from kgarment.case import case_from_problem
+from kgarment.case.frames import frame_motions
 from kgarment.errors import KgarmentError
+from kgarment.optimize.setup import setup_from_problem
 from kgarment.problem import build_clutches, build_garment, parse_problem, problem_to_dict
 
 EARLY = TINY_SLEEVE + """[design]
@@ -45,24 +46,24 @@ def test_the_early_pose_is_the_motion_part_of_the_way_in_design_runs_only(anny_b
     p = parse_problem(tomllib.loads(EARLY))
     g = build_garment(p, anny_body)
     strips = build_clutches(p, anny_body, g)
-    setup = setup_from_problem(p, anny_body, g, strips, "design")
-    keys = [k for k, _ in setup.states()]
+    setup = setup_from_problem(p, anny_body, g, strips)
+    keys = [k for k, _ in setup.case.states()]
     assert keys == [("arm_flexion.right", "on"), ("arm_flexion.right", "off"),
                     ("arm_flexion.right@0.50", "on"), ("arm_flexion.right@0.50", "off")]
     frames, _ = frame_motions(p, ["arm_flexion.right"], 2)
-    early = setup.motions["arm_flexion.right@0.50"].garment_x0
+    early = setup.case.motions["arm_flexion.right@0.50"].garment_x0
     assert np.array_equal(early, frames["arm_flexion.right@0.500"].garment_x0)
-    last, target = frames["arm_flexion.right@1.000"].garment_x0, setup.motions["arm_flexion.right"].garment_x0
+    last, target = frames["arm_flexion.right@1.000"].garment_x0, setup.case.motions["arm_flexion.right"].garment_x0
     assert np.array_equal(last, target) and np.abs(early - target).max() > 1e-3
-    on = dict(setup.states())
+    on = dict(setup.case.states())
     assert on[("arm_flexion.right@0.50", "on")].activation == on[("arm_flexion.right", "on")].activation
-    assert [k for k, _ in setup_from_problem(p, anny_body, g, strips, "evaluate").states()] == keys[:2]
+    assert [k for k, _ in case_from_problem(p, anny_body, g, strips).states()] == keys[:2]
     # the motion and its early pose share one motion's weight in the objective
-    assert setup.shares == {"arm_flexion.right": 0.5, "arm_flexion.right@0.50": 0.5}
+    assert setup.beso.shares == {"arm_flexion.right": 0.5, "arm_flexion.right@0.50": 0.5}
 
 
 def test_a_motion_and_its_early_poses_split_one_share():
-    from kgarment.design.frames import early_shares
+    from kgarment.case.frames import early_shares
 
     assert early_shares(()) == {}
     two = early_shares((("a", 0.25), ("a", 0.5), ("b", 0.5)))

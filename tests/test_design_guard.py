@@ -1,4 +1,4 @@
-"""The step guard: a step that breaks a motion's load path is taken back (kgarment.design.guard)."""
+"""The step guard: a step that breaks a motion's load path is taken back (kgarment.optimize.guard)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import pytest
 from test_design_loop import _sheet_setup
 
 from kgarment.constants import GUARD_AREA, GUARD_FLOOR, GUARD_RETRIES
-from kgarment.design.guard import (
+from kgarment.design.run import best_iteration, load_checkpoint, save_checkpoint
+from kgarment.optimize.guard import (
     blinding,
     boosted,
     collapsed,
@@ -19,9 +20,15 @@ from kgarment.design.guard import (
     paths_of,
     rejections_in_a_row,
 )
-from kgarment.design.loop import advance, initial_state, iterate, metrics_row, sensitivities, solve
-from kgarment.design.objective import objective_terms, objective_value
-from kgarment.design.run import best_iteration, load_checkpoint, save_checkpoint
+from kgarment.optimize.loop import (
+    advance,
+    initial_state,
+    iterate,
+    metrics_row,
+    sensitivities,
+    solve,
+)
+from kgarment.optimize.objective import objective_terms, objective_value
 
 
 def test_objective_terms_sum_to_the_objective():

@@ -11,10 +11,11 @@ import pytest
 from tiny_problems import TINY_SLEEVE
 
 from kgarment import constants
-from kgarment.design.beso import design_values
-from kgarment.design.evaluate import Evaluator, solve_two_starts
-from kgarment.design.levels import level_problem, parent_faces, put_on, restrict, vertex_map
-from kgarment.design.loads import coarse_starts
+from kgarment.case.levels import level_problem, parent_faces, put_on, restrict, vertex_map
+from kgarment.case.starts import solve_two_starts
+from kgarment.case.values import design_values
+from kgarment.evaluate.evaluator import Evaluator
+from kgarment.evaluate.loads import coarse_starts
 from kgarment.problem import parse_problem
 
 
@@ -59,24 +60,24 @@ def test_the_put_on_start_is_the_state_solved_one_level_down_and_mapped_up(anny_
     start is the skin-tight garment."""
     fine = Evaluator.from_problem(_sleeve(1), body=anny_body)
     coarse = Evaluator.from_problem(level_problem(_sleeve(1), 0), body=anny_body)
-    assert coarse.setup.coarser is None and fine.setup.coarser().level == 0
+    assert coarse.case.coarser is None and fine.case.coarser().level == 0
     rng = np.random.default_rng(0)
     parents = rng.random(coarse.n_faces) < 0.5
     design = design_values(parents[parent_faces(fine.n_faces, coarse.n_faces)])
     states = [s for _, s in fine.keyed()]
-    starts = put_on(fine.setup, design, states)
+    starts = put_on(fine.case, design, states)
     assert len(starts) == len(states) == 2  # ON and OFF
     # independently: the same states solved on the level-0 garment, mapped up
-    low = coarse.setup.solve(restrict(design, coarse.n_faces), [s for _, s in coarse.keyed()])
-    S = vertex_map(coarse.setup.model.garment_faces, coarse.setup.model.n_garment, fine.n_faces)
+    low = coarse.case.solve(restrict(design, coarse.n_faces), [s for _, s in coarse.keyed()])
+    S = vertex_map(coarse.case.model.garment_faces, coarse.case.model.n_garment, fine.n_faces)
     for start, r in zip(starts, low):
         assert r.converged
-        expect = fine.setup.model.initial_positions(S @ r.x[: coarse.setup.model.n_garment])
+        expect = fine.case.model.initial_positions(S @ r.x[: coarse.case.model.n_garment])
         np.testing.assert_allclose(start, expect, rtol=0, atol=1e-12)
-    assert put_on(coarse.setup, restrict(design, coarse.n_faces), [s for _, s in coarse.keyed()]) == [None, None]
+    assert put_on(coarse.case, restrict(design, coarse.n_faces), [s for _, s in coarse.keyed()]) == [None, None]
     # the evaluator's second start is this one, and the fine solves converge from it
-    _, worn = solve_two_starts(fine.setup, design, states, [None, None])
-    again = fine.setup.solve(design, states, warm_start=starts)
+    _, worn = solve_two_starts(fine.case, design, states, [None, None])
+    again = fine.case.solve(design, states, warm_start=starts)
     for a, b in zip(worn, again):
         assert a.converged and a.total_energy == b.total_energy
 
@@ -90,48 +91,48 @@ def test_every_start_of_an_evaluation_comes_from_one_level_down(anny_body, neste
     nested = Evaluator.from_problem(_sleeve(1, "sleeve"), body=anny_body)
     low = nested.coarser
     assert low.coarser is None and low.n_faces * 4 == nested.n_faces
-    m = nested.setup.model
+    m = nested.case.model
     faces = m.garment_rest[m.garment_faces].mean(axis=1)
     anchors = np.concatenate([c.vertices[c.anchors] for c in m.clutches])
     near = np.linalg.norm(faces[:, None] - anchors[None], axis=2).min(axis=1) < 0.05
-    design = design_values(near | np.isin(np.arange(nested.n_faces), nested.setup.attached))
+    design = design_values(near | np.isin(np.arange(nested.n_faces), nested.case.attached))
     keyed = nested.keyed()
     idx, d, down = nested.down(design, keyed)
     assert idx == [0, 1]
-    there = low.setup.solve(d, [s for _, s in down], warm_start=[r.x for r in low.reference(down)])
+    there = low.case.solve(d, [s for _, s in down], warm_start=[r.x for r in low.reference(down)])
     for start, r in zip(nested.from_full(design, keyed), there):
         np.testing.assert_allclose(start, nested.up(r.x), rtol=0, atol=1e-12)
     ev = nested.evaluate(design, loads=True)
     assert ev.converged and len(ev.loads.clutches) == 2
     solo = nested.activation_states([1.0, 0.0], label="only elbow_outer.R") + \
         nested.activation_states([0.0, 1.0], label="only elbow_inner.R")
-    n_low = low.setup.model.n_garment
+    n_low = low.case.model.n_garment
     for (_, state), start in zip(solo, coarse_starts(nested, design, solo)):
         # the level-0 garment's own vertices, the clutches bound to them again: an equilibrium
         # there (to LOAD_TOL) but for the clutches, which settle without moving the garment
-        x = low.setup.model.initial_positions(start[:n_low])
-        (r,) = low.setup.solve(d, [dataclasses.replace(state, motion=low.setup.motions[state.motion.name])],
+        x = low.case.model.initial_positions(start[:n_low])
+        (r,) = low.case.solve(d, [dataclasses.replace(state, motion=low.case.motions[state.motion.name])],
                                warm_start=[x])
         assert r.converged
-        assert np.abs(r.x[:n_low] - start[:n_low]).max() < 0.25 * low.setup.model.mean_edge
+        assert np.abs(r.x[:n_low] - start[:n_low]).max() < 0.25 * low.case.model.mean_edge
 
 
 def test_a_design_runs_iteration_0_starts_one_level_down(anny_body, nested_sleeve):
     """The fully reinforced garment of a design run's iteration 0 is solved from its
     equilibria one level down (the design setup's own coarser level), as the evaluator's
     are; later iterations start from the iteration before."""
-    from kgarment.design.loop import initial_state
-    from kgarment.design.loop import solve as loop_solve
-    from kgarment.design.setup import setup_from_problem
+    from kgarment.optimize.loop import initial_state
+    from kgarment.optimize.loop import solve as loop_solve
+    from kgarment.optimize.setup import setup_from_problem
     from kgarment.problem import build_clutches, build_garment
 
     p = _sleeve(1)
     garment = build_garment(p, anny_body)
-    setup = setup_from_problem(p, anny_body, garment, build_clutches(p, anny_body, garment), "design")
-    assert setup.coarser().setup.model.n_faces * 4 == setup.model.n_faces
+    setup = setup_from_problem(p, anny_body, garment, build_clutches(p, anny_body, garment))
+    assert setup.case.coarser().case.model.n_faces * 4 == setup.case.model.n_faces
     st = initial_state(setup)
     solved = loop_solve(setup, st)
-    states = [s for _, s in setup.states()]
-    again = setup.solve(st.design, states, warm_start=put_on(setup, st.design, states), options=setup.options(0))
+    states = [s for _, s in setup.case.states()]
+    again = setup.case.solve(st.design, states, warm_start=put_on(setup.case, st.design, states), options=setup.options(0))
     for a, b in zip(solved.results, again):
         assert a.converged and np.array_equal(a.x, b.x)

@@ -5,10 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kgarment.design import Evaluator
-from kgarment.design.loads import load_chart
-from kgarment.design.setup import DesignSetup
-from kgarment.problem import BesoParams
+from kgarment.case import Case
+from kgarment.evaluate import Evaluator
+from kgarment.evaluate.loads import load_chart
 from kgarment.sim import SolverOptions, build_model
 from kgarment.sim.synthetic import Tube
 
@@ -31,7 +30,7 @@ def tube():
     band = np.abs(theta) < 0.26  # 2.6 cm of arc
     reinforced = band & ((c[:, 2] < 0.095) | (c[:, 2] > 0.205))
     design = np.where(reinforced, 1.0, 1e-3)
-    setup = DesignSetup.build(model, {"pull": motion}, "active", BesoParams(), SolverOptions(tol=1e-5, max_iter=300))
+    setup = Case.build(model, {"pull": motion}, "active", SolverOptions(tol=1e-5, max_iter=300))
     return Evaluator(setup), design
 
 
@@ -69,7 +68,7 @@ def test_the_control_plan_switches_the_linked_clutch_alone(tube, tube_loads):
     """Every subset evaluated: {linked} keeps the whole resistance, {loose} none of it, so
     the recommended set is {linked}; the all-ON and OFF energies are the evaluator's; the
     greedy search (exhaustive limit 0) finds the same set first."""
-    from kgarment.design.plan import make_plan, plan_markdown
+    from kgarment.evaluate.plan import make_plan, plan_markdown
 
     evaluator, design = tube
     plan = make_plan(evaluator, design)
@@ -101,8 +100,7 @@ def series_loads():
     c = tube.vertices[tube.faces].mean(axis=1)
     z, band = c[:, 2], np.abs(np.arctan2(c[:, 1], c[:, 0])) < 0.26
     reinforced = band & ((z < 0.075) | ((z > 0.125) & (z < 0.175)) | (z > 0.225))
-    setup = DesignSetup.build(model, {"pull": tube.motion("pull", 0.05, 0.0)}, "active", BesoParams(),
-                              SolverOptions(tol=1e-5, max_iter=300))
+    setup = Case.build(model, {"pull": tube.motion("pull", 0.05, 0.0)}, "active", SolverOptions(tol=1e-5, max_iter=300))
     return Evaluator(setup).evaluate(np.where(reinforced, 1.0, 1e-3), loads=True).loads
 
 
@@ -127,9 +125,8 @@ def test_loads_on_cuda_match_the_cpu(tube, tube_loads):
     import dataclasses
 
     evaluator, design = tube
-    s = evaluator.setup
-    gpu = DesignSetup.build(s.model, s.motions, "active", BesoParams(),
-                            dataclasses.replace(s.solver, device="cuda"))
+    s = evaluator.case
+    gpu = Case.build(s.model, s.motions, "active", dataclasses.replace(s.solver, device="cuda"))
     loads = Evaluator(gpu).evaluate(design, loads=True).loads
     for name in ("linked", "loose"):
         a, b = tube_loads.loads.get("pull", name), loads.get("pull", name)
@@ -143,7 +140,7 @@ def test_the_control_plan_keeps_a_lower_known_equilibrium(tube, tube_loads):
     energy and the plan says so); one 10% above leaves the plan as it is."""
     import dataclasses
 
-    from kgarment.design.plan import make_plan, plan_markdown
+    from kgarment.evaluate.plan import make_plan, plan_markdown
 
     evaluator, design = tube
     (g,) = tube_loads.loads.garment
@@ -166,11 +163,11 @@ def test_a_design_already_solved_in_a_state_is_not_solved_again(tube, monkeypatc
     the same design in the same states costs no solve and gives the same numbers; another
     design or another activation is solved."""
     evaluator, design = tube
-    ev = Evaluator(evaluator.setup)
+    ev = Evaluator(evaluator.case)
     first = ev.evaluate(design)
     calls = []
-    real = DesignSetup.solve
-    monkeypatch.setattr(DesignSetup, "solve", lambda self, *a, **k: calls.append(len(a[1])) or real(self, *a, **k))
+    real = Case.solve
+    monkeypatch.setattr(Case, "solve", lambda self, *a, **k: calls.append(len(a[1])) or real(self, *a, **k))
     again = ev.evaluate(design)
     assert calls == []
     assert [s.energy for s in again.states] == [s.energy for s in first.states]
@@ -193,12 +190,12 @@ def _cut_load_state(tube, tube_loads):
     import dataclasses
 
     from kgarment.constants import LOAD_TOL
-    from kgarment.design.loads import nearer_start
+    from kgarment.evaluate.loads import nearer_start
 
     evaluator, design = tube
     known = {(s.motion, s.state): s.result for s in tube_loads.states}
     keyed = evaluator.activation_states([1.0, 0.0], ["pull"], "only linked")
-    setup = evaluator.setup
+    setup = evaluator.case
     start = nearer_start(setup, design, keyed[0][1], [known[("pull", "on")].x, known[("pull", "off")].x])
     free = dataclasses.replace(setup.solver, tol=LOAD_TOL, rescue_shifts=0)
     (full,) = setup.solve_now(design, [keyed[0][1]], [start], free)
@@ -212,7 +209,7 @@ def test_a_load_state_that_needs_more_iterations_goes_on_from_where_it_stopped(t
     """A one-clutch state cut off by the solver's iteration limit one iteration short of
     convergence goes on from where it stopped (a second round of as many), not from the
     evaluator's two starts, and ends at the equilibrium an unlimited solve reaches."""
-    from kgarment.design.loads import activation_equilibria
+    from kgarment.evaluate.loads import activation_equilibria
 
     short, design, keyed, known, full = _cut_load_state(tube, tube_loads)
     monkeypatch.setattr(Evaluator, "equilibria", lambda *a, **k: pytest.fail("fell back to the two starts"))
@@ -232,15 +229,15 @@ def test_a_load_state_still_sliding_after_going_on_is_switched_on_in_steps(tube,
     import torch
 
     from kgarment.constants import LOAD_TOL
-    from kgarment.design.loads import activation_equilibria
+    from kgarment.evaluate.loads import activation_equilibria
     from kgarment.sim.solve import prepare_state
 
     short, design, keyed, known, full = _cut_load_state(tube, tube_loads)
-    monkeypatch.setattr(DesignSetup, "go_on", lambda self, design, states, stopped, options=None: list(stopped))
+    monkeypatch.setattr(Case, "go_on", lambda self, design, states, stopped, options=None: list(stopped))
     monkeypatch.setattr(Evaluator, "equilibria", lambda *a, **k: pytest.fail("fell back to the two starts"))
     (r,) = activation_equilibria(short, design, keyed, known).values()
     assert r.converged and r.convergence.tolerance == LOAD_TOL
-    prob = prepare_state(short.setup.model, design, keyed[0][1], short.setup.solver)
+    prob = prepare_state(short.case.model, design, keyed[0][1], short.case.solver)
     _, grad, _ = prob.evaluate(torch.as_tensor(r.x), order=1)
     assert prob.residual(grad) <= LOAD_TOL
     assert r.total_energy == pytest.approx(full.total_energy, rel=1e-2)
@@ -252,10 +249,10 @@ def test_a_state_converged_from_neither_start_goes_on_from_the_nearer_end(tube):
     reach (the tube has one), instead of being reported unconverged."""
     import dataclasses
 
-    from kgarment.design.evaluate import solve_two_starts
+    from kgarment.case.starts import solve_two_starts
 
     evaluator, design = tube
-    setup = evaluator.setup
+    setup = evaluator.case
     keyed = [(k, s) for k, s in evaluator.keyed() if k[1] == "off"]
     (ref,) = evaluator.reference(keyed)
     free = dataclasses.replace(setup.solver, rescue_shifts=0)
@@ -264,7 +261,7 @@ def test_a_state_converged_from_neither_start_goes_on_from_the_nearer_end(tube):
     assert a.converged and b.converged and n >= 3
     assert a.total_energy == pytest.approx(b.total_energy, rel=1e-6)
     short = Evaluator(dataclasses.replace(setup, solver=dataclasses.replace(free, max_iter=n - 1)))
-    (cut,), (cut2,) = solve_two_starts(short.setup, design, [keyed[0][1]], [ref.x])
+    (cut,), (cut2,) = solve_two_starts(short.case, design, [keyed[0][1]], [ref.x])
     assert not cut.converged and not cut2.converged  # what the evaluator had before going on
     (e,) = short.solve_design(design, keyed, starts=[ref.x])
     assert e.result.converged

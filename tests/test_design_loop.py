@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from kgarment.design import BesoParams
-from kgarment.design.loop import initial_state, run_loop
 from kgarment.design.run import load_checkpoint, save_checkpoint
-from kgarment.design.setup import DesignSetup
+from kgarment.optimize import BesoParams
+from kgarment.optimize.loop import initial_state, run_loop
+from kgarment.optimize.setup import DesignSetup
 
 
 def _sheet_setup(objective="passive", max_iterations=12, target=0.3, n=10):
@@ -104,19 +104,20 @@ def test_evolution_tolerance_after_iteration_0():
     import math
 
     fine, _ = _sheet_setup(max_iterations=40)
-    fine = dataclasses.replace(fine, solver=dataclasses.replace(fine.solver, tol=1e-4))
+    fine = dataclasses.replace(fine, solver=dataclasses.replace(fine.case.solver, tol=1e-4))
     ref = run_loop(fine, initial_state(fine))
     setup, _ = _sheet_setup(max_iterations=40)
-    setup = dataclasses.replace(setup, solver=fine.solver, evolution_solver=dataclasses.replace(fine.solver, tol=1e-2))
+    setup = dataclasses.replace(setup, case=dataclasses.replace(setup.case, solver=fine.case.solver),
+                                beso=dataclasses.replace(setup.beso, evolution_solver=dataclasses.replace(fine.case.solver, tol=1e-2)))
     st = run_loop(setup, initial_state(setup))
     tols = [r["solver_tol"] for r in st.metrics]
-    at_target = [r["target"] == setup.params.target_area for r in st.metrics]
+    at_target = [r["target"] == setup.beso.params.target_area for r in st.metrics]
     assert tols[0] == 1e-4 and st.metrics[0]["target"] == 1.0
     assert all(t == 1e-2 for t in tols[1:])
     assert 0 < sum(at_target) < len(tols) - 1  # both phases happened
     assert [math.isnan(o) for o in st.objectives] == [k > 0 and not a for k, a in enumerate(at_target)]
     assert len(st.metrics) < 40 and len(ref.metrics) < 40  # both converged (not stopped at the maximum)
-    assert len(st.metrics) - at_target.index(True) >= 2 * setup.params.window  # judged at A* only
+    assert len(st.metrics) - at_target.index(True) >= 2 * setup.beso.params.window  # judged at A* only
     newton = lambda run: sum(r["newton_iterations"] for r in run.metrics[1:])  # noqa: E731
     assert newton(st) < 0.5 * newton(ref)
     diff = int((st.designs[-1] != ref.designs[-1]).sum())
@@ -124,9 +125,9 @@ def test_evolution_tolerance_after_iteration_0():
 
 
 def test_protected_faces(anny_body):
+    from kgarment.case.setup import protected_faces
     from kgarment.clutch import build_clutch
     from kgarment.clutch.layouts import default_layout
-    from kgarment.design.setup import protected_faces
     from kgarment.garment import make_garment
 
     g = make_garment(anny_body, "arm_sleeve.right", 0)
@@ -144,14 +145,14 @@ def test_activation_continuation_reaches_the_on_equilibrium(anny_body):
 
     import torch
 
-    from kgarment.design.continuation import CONTINUATION, activation_continuation
-    from kgarment.design.setup import setup_from_problem
+    from kgarment.case import case_from_problem
+    from kgarment.case.continuation import CONTINUATION, activation_continuation
     from kgarment.problem import GarmentSpec, Problem, build_clutches, build_garment
     from kgarment.sim.solve import prepare_state
 
     p = Problem(motions=("arm_flexion.right",), garment=GarmentSpec("arm_sleeve.right", subdivision=0))
     g = build_garment(p, anny_body)
-    setup = setup_from_problem(p, anny_body, g, build_clutches(p, anny_body, g), "evaluate")
+    setup = case_from_problem(p, anny_body, g, build_clutches(p, anny_body, g))
     setup = dataclasses.replace(setup, solver=dataclasses.replace(setup.solver, workers=1))
     design = np.where(np.arange(g.n_faces) % 3 == 0, 1.0, setup.model.preset.x_min)
     on = next(s for k, s in setup.states() if k[1] == "on")
@@ -177,9 +178,9 @@ def test_settle_cools_the_exchange_at_the_target():
     import math
 
     setup, _ = _sheet_setup(max_iterations=20, target=0.4)
-    setup = dataclasses.replace(setup, params=dataclasses.replace(setup.params, settle=1, tol=1e-12))
+    setup = dataclasses.replace(setup, beso=dataclasses.replace(setup.beso, params=dataclasses.replace(setup.beso.params, settle=1, tol=1e-12)))
     st = run_loop(setup, initial_state(setup))
-    p, m = setup.params, len(st.design)
+    p, m = setup.beso.params, len(st.design)
     ks = []
     for i in range(1, len(st.designs)):
         k = sum(1 for r in st.metrics[:i] if p.reached(r["area"]))
@@ -198,23 +199,23 @@ def test_skin_start_keeps_the_lowest_energy_of_the_evaluators_starts():
     name: the same as solving the three starts apart; its Newton iterations count all."""
     import dataclasses
 
-    from kgarment.design.evaluate import MULTISTABLE
-    from kgarment.design.loop import FULL, iterate, solve
+    from kgarment.case.starts import MULTISTABLE
+    from kgarment.optimize.loop import FULL, iterate, solve
 
     setup, _ = _sheet_setup(max_iterations=4)
-    setup = dataclasses.replace(setup, skin_start=True)
-    states = [s for _, s in setup.states()]
+    setup = dataclasses.replace(setup, case=dataclasses.replace(setup.case, skin_start=True))
+    states = [s for _, s in setup.case.states()]
     first = iterate(setup, initial_state(setup))
-    full_eq = setup.solve(np.ones(setup.model.n_faces), states, options=setup.options(0))
+    full_eq = setup.case.solve(np.ones(setup.case.model.n_faces), states, options=setup.options(0))
     for s, r in zip(states, full_eq):  # iteration 0 is the fully reinforced garment from skin-tight
         assert np.array_equal(first.warm[s.name + FULL], r.x)
     st = iterate(setup, first)
     assert all(np.array_equal(st.warm[s.name + FULL], first.warm[s.name + FULL]) for s in states)  # kept
     solved = solve(setup, st)
     opts = setup.options(st.iteration)
-    warm = setup.solve(st.design, states, warm_start=[st.warm.get(s.name) for s in states], options=opts)
-    cold = setup.solve(st.design, states, options=opts)
-    full = setup.solve(st.design, states, warm_start=[st.warm[s.name + FULL] for s in states], options=opts)
+    warm = setup.case.solve(st.design, states, warm_start=[st.warm.get(s.name) for s in states], options=opts)
+    cold = setup.case.solve(st.design, states, options=opts)
+    full = setup.case.solve(st.design, states, warm_start=[st.warm[s.name + FULL] for s in states], options=opts)
     assert all(r.converged for r in warm + cold + full)
     assert any(c.convergence.iterations != f.convergence.iterations for c, f in zip(cold, full))
     for s, r, *three in zip(states, solved.results, warm, cold, full):
@@ -231,15 +232,15 @@ def test_a_start_that_stopped_below_the_kept_equilibrium_is_solved_on():
     that stopped above it is left (nothing solved)."""
     import dataclasses
 
-    from kgarment.design.loop import _continue_lower, iterate
+    from kgarment.optimize.loop import _continue_lower, iterate
 
     setup, _ = _sheet_setup(max_iterations=4)
-    setup = dataclasses.replace(setup, skin_start=True)
+    setup = dataclasses.replace(setup, case=dataclasses.replace(setup.case, skin_start=True))
     st = iterate(setup, iterate(setup, initial_state(setup)))
-    states = [s for _, s in setup.states()][:1]
+    states = [s for _, s in setup.case.states()][:1]
     opts = setup.options(st.iteration)
-    (eq,) = setup.solve(st.design, states, options=opts)
-    (stopped,) = setup.solve(st.design, states, options=dataclasses.replace(opts, max_iter=2, rescue_shifts=0,
+    (eq,) = setup.case.solve(st.design, states, options=opts)
+    (stopped,) = setup.case.solve(st.design, states, options=dataclasses.replace(opts, max_iter=2, rescue_shifts=0,
                                                                              on_fail="info"))
     assert eq.converged and not stopped.converged and stopped.total_energy > eq.total_energy
     # it stopped above the equilibrium: kept as it is

@@ -1,6 +1,6 @@
 """``[solver] path_start``: the design loop's ON states also solved over their motion from
 rest as the evaluator solves them, that end kept where the evaluator would keep it
-(kgarment.design.motion_start.motion_ends)."""
+(kgarment.optimize.motion_start.motion_ends)."""
 
 from __future__ import annotations
 
@@ -12,13 +12,15 @@ import numpy as np
 import pytest
 from tiny_problems import TINY_SLEEVE
 
-from kgarment.design.beso import design_values
-from kgarment.design.evaluate import MULTISTABLE, Evaluator
-from kgarment.design.frames import REST
-from kgarment.design.motion_start import motion_ends
-from kgarment.design.path import PATH_FRAMES, path_forces
-from kgarment.design.setup import setup_from_problem
+from kgarment.case import case_from_problem
+from kgarment.case.frames import REST
+from kgarment.case.starts import MULTISTABLE
+from kgarment.case.values import design_values
 from kgarment.errors import KgarmentError
+from kgarment.evaluate.evaluator import Evaluator
+from kgarment.evaluate.path import PATH_FRAMES, path_forces
+from kgarment.optimize.motion_start import motion_ends
+from kgarment.optimize.setup import setup_from_problem
 from kgarment.problem import build_clutches, build_garment, parse_problem
 
 SLEEVE = TINY_SLEEVE + """[solver]
@@ -36,14 +38,14 @@ def parts(anny_body):
 
 @pytest.fixture(scope="module")
 def setup(parts):
-    return setup_from_problem(*parts, "design")
+    return setup_from_problem(*parts)
 
 
 def test_the_frames_are_the_evaluators_and_lead_to_the_target_pose(setup):
-    frames, index = setup.path_frames
-    assert setup.path_start == 3 and REST in frames
+    frames, index = setup.beso.path_frames
+    assert setup.beso.path_start == 3 and REST in frames
     assert [t for _, m, t in index] == pytest.approx([k / PATH_FRAMES for k in range(1, PATH_FRAMES + 1)])
-    target = setup.motions["arm_flexion.right"].garment_x0
+    target = setup.case.motions["arm_flexion.right"].garment_x0
     # the body's pose moves towards the target frame by frame (the attached garment with it),
     # the last frame is the target pose
     gaps = [float(np.abs(frames[label].garment_x0 - target).max()) for label, _, _ in index]
@@ -55,11 +57,11 @@ def test_a_higher_equilibrium_is_replaced_and_a_lower_one_kept(setup, parts):
     iterations: higher energy, unconverged), the motion's converged end replaces it, and it is
     the end of ``evaluate --path`` (the evaluator's own motion from rest); given the motion's
     own end, nothing changes; OFF states are never touched."""
-    keyed = setup.states()
-    mask = np.ones(setup.model.n_faces, bool)
+    keyed = setup.case.states()
+    mask = np.ones(setup.case.model.n_faces, bool)
     mask[::3] = False
     design = design_values(mask)
-    stopped = setup.solve(design, [s for _, s in keyed], options=dataclasses.replace(setup.solver, max_iter=2))
+    stopped = setup.case.solve(design, [s for _, s in keyed], options=dataclasses.replace(setup.case.solver, max_iter=2))
     assert not any(r.converged for r in stopped)
     out, moved = motion_ends(setup, design, keyed, stopped)
     on = [i for i, (k, _) in enumerate(keyed) if k[1] == "on"]
@@ -70,7 +72,7 @@ def test_a_higher_equilibrium_is_replaced_and_a_lower_one_kept(setup, parts):
     for i in off:
         assert out[i] is stopped[i]
     # the evaluator's motion from rest (its own setup, tolerance and frames) ends where the check did
-    ev = Evaluator(setup_from_problem(*parts, "evaluate"))
+    ev = Evaluator(case_from_problem(*parts))
     (end,) = (r for (m, s), r in path_forces(ev, design, parts[0], frames=PATH_FRAMES).ends.items() if s == "on")
     assert out[on[0]].total_energy == pytest.approx(end.total_energy, rel=1e-6)
     again, moved = motion_ends(setup, design, keyed, out)
@@ -85,7 +87,7 @@ def test_bad_values_and_uses_are_one_line_errors(anny_body):
         parse_problem(tomllib.loads(SLEEVE.format(every=-1)))
     p = parse_problem(tomllib.loads(SLEEVE.format(every=0)))
     g = build_garment(p, anny_body)
-    assert setup_from_problem(p, anny_body, g, build_clutches(p, anny_body, g), "design").path_frames == ()
+    assert setup_from_problem(p, anny_body, g, build_clutches(p, anny_body, g)).beso.path_frames == ()
     for bad in (0, 201, 2.5):
         with pytest.raises(KgarmentError, match="path_frames"):
             parse_problem(tomllib.loads(SLEEVE.format(every=3) + f"path_frames = {bad}\n"))
@@ -95,7 +97,7 @@ def test_the_check_solves_the_frames_the_problem_asks_for(parts):
     """``[solver] path_frames``: the check's motion from rest in that many frames, the
     last one the target pose."""
     p = parse_problem(tomllib.loads(SLEEVE.format(every=3) + "path_frames = 4\n"))
-    _, index = setup_from_problem(p, *parts[1:], "design").path_frames
+    _, index = setup_from_problem(p, *parts[1:]).beso.path_frames
     assert [t for _, _, t in index] == pytest.approx([0.25, 0.5, 0.75, 1.0])
 
 
@@ -130,15 +132,15 @@ def test_with_the_two_starts_the_state_becomes_the_evaluators_even_when_higher(s
     evaluator reports, the lower of those and the motion's end: an equilibrium only the loop's
     continuation reached is dropped even where it stores less (stood in for here by a
     converged solve of a sparser design: lower energy, not the evaluator's)."""
-    keyed = setup.states()
-    mask = np.ones(setup.model.n_faces, bool)
+    keyed = setup.case.states()
+    mask = np.ones(setup.case.model.n_faces, bool)
     mask[::3] = False
     design = design_values(mask)
-    sparse = design_values(np.arange(setup.model.n_faces) % 5 == 0)
-    ends, _ = motion_ends(setup, design, keyed, setup.solve(design, [s for _, s in keyed],
-                                                              options=dataclasses.replace(setup.solver, max_iter=2)))
+    sparse = design_values(np.arange(setup.case.model.n_faces) % 5 == 0)
+    ends, _ = motion_ends(setup, design, keyed, setup.case.solve(design, [s for _, s in keyed],
+                                                              options=dataclasses.replace(setup.case.solver, max_iter=2)))
     on = next(i for i, (k, _) in enumerate(keyed) if k[1] == "on")
-    low = setup.solve(sparse, [s for _, s in keyed], options=setup.solver)
+    low = setup.case.solve(sparse, [s for _, s in keyed], options=setup.case.solver)
     assert low[on].converged and low[on].total_energy < ends[on].total_energy * (1 - MULTISTABLE)
     out, moved = motion_ends(setup, design, keyed, low, starts=ends)
     assert moved == ["arm_flexion.right"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kgarment.design.evaluate import MULTISTABLE, pick_equilibrium
+from kgarment.case.starts import MULTISTABLE, pick_equilibrium
 from kgarment.sim import Convergence, StateResult
 
 
@@ -37,7 +37,7 @@ def test_the_motion_from_rest_replaces_the_two_starts_only_where_clearly_lower()
     wearer reaches) is kept where it is converged and lower by more than MULTISTABLE, with
     the two starts' equilibrium reported as the other; closer, higher or unconverged ones
     leave the evaluation as it was."""
-    from kgarment.design.evaluate import Equilibrium, with_known
+    from kgarment.case.starts import Equilibrium, with_known
 
     starts = Equilibrium(result(24.9))
     e = with_known(starts, result(6.8))
@@ -54,7 +54,7 @@ def test_the_motion_from_rest_replaces_the_two_starts_only_where_clearly_lower()
 
 def _evaluation(rhos: dict[str, float], off: float = 0.01):
     """A DesignEvaluation with rho ON ``rhos[motion]`` and OFF ``off`` (energies = rho, full = 1)."""
-    from kgarment.design.evaluate import DesignEvaluation, StateEvaluation
+    from kgarment.evaluate.evaluator import DesignEvaluation, StateEvaluation
 
     states = []
     for m, rho in rhos.items():

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from tiny_problems import TINY_SLEEVE
 
+from kgarment.case.levels import parent_faces, vertex_map
 from kgarment.cli import main
 from kgarment.constants import target_reached
 from kgarment.design import load_design_history
-from kgarment.design.levels import parent_faces, vertex_map
 from kgarment.errors import KgarmentError
 from kgarment.garment import make_garment
 from kgarment.garment.topology import triangle_areas

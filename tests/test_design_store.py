@@ -1,4 +1,4 @@
-"""Equilibria kept on disk (``kgarment.design.store``): a second process's evaluator takes a
+"""Equilibria kept on disk (``kgarment.case.store``): a second process's evaluator takes a
 run's solves from its store and gives the same numbers without solving; anything that
 changes a solve (the solver options, the design, the start) finds no entry; a damaged
 entry is solved again."""
@@ -10,10 +10,9 @@ import logging
 import numpy as np
 import pytest
 
-from kgarment.design import Evaluator
-from kgarment.design.setup import DesignSetup
-from kgarment.design.store import EquilibriumStore, content_digest
-from kgarment.problem import BesoParams
+from kgarment.case import Case
+from kgarment.case.store import EquilibriumStore, content_digest
+from kgarment.evaluate import Evaluator
 from kgarment.sim import SolverOptions, build_model
 from kgarment.sim.synthetic import Tube
 
@@ -27,8 +26,7 @@ def _evaluator(store=None, tol=1e-5) -> tuple[Evaluator, np.ndarray]:
     c = tube.vertices[tube.faces].mean(axis=1)
     band = np.abs(np.arctan2(c[:, 1], c[:, 0])) < 0.26
     design = np.where(band & ((c[:, 2] < 0.095) | (c[:, 2] > 0.205)), 1.0, 1e-3)
-    setup = DesignSetup.build(model, {"pull": tube.motion("pull", 0.05, 0.0)}, "active", BesoParams(),
-                              SolverOptions(tol=tol, max_iter=300))
+    setup = Case.build(model, {"pull": tube.motion("pull", 0.05, 0.0)}, "active", SolverOptions(tol=tol, max_iter=300))
     return Evaluator(setup, store), design
 
 
@@ -40,13 +38,13 @@ def _numbers(ev) -> list:
 
 def _count_solves(monkeypatch) -> list:
     calls = []
-    orig = DesignSetup.solve_now
+    orig = Case.solve_now
 
     def solve_now(self, design, states, *args, **kwargs):
         calls.append(len(states))
         return orig(self, design, states, *args, **kwargs)
 
-    monkeypatch.setattr(DesignSetup, "solve_now", solve_now)
+    monkeypatch.setattr(Case, "solve_now", solve_now)
     return calls
 
 
@@ -98,7 +96,7 @@ def test_a_damaged_entry_is_solved_again_with_a_warning(stored, tmp_path, caplog
         (copy / f.name).write_bytes(b"not an npz file")  # this evaluation would not read
     calls = _count_solves(monkeypatch)
     ev, _ = _evaluator(EquilibriumStore(copy))
-    with caplog.at_level(logging.WARNING, logger="kgarment.design.store"):
+    with caplog.at_level(logging.WARNING, logger="kgarment.case.store"):
         again = ev.evaluate(design, loads=True)
     assert "unreadable" in caplog.text and calls
     assert _numbers(again) == _numbers(first)  # solved again: the same equilibrium
@@ -111,7 +109,7 @@ def test_a_store_that_cannot_be_written_warns_once_and_the_numbers_stand(stored,
     blocked = tmp_path / "equilibria"
     blocked.write_text("a user's file")
     ev, _ = _evaluator(EquilibriumStore(blocked))
-    with caplog.at_level(logging.WARNING, logger="kgarment.design.store"):
+    with caplog.at_level(logging.WARNING, logger="kgarment.case.store"):
         again = ev.evaluate(design, loads=True)
     assert caplog.text.count("could not write") == 1
     assert blocked.read_text() == "a user's file"
@@ -130,7 +128,7 @@ def test_content_digest_sees_arrays_and_fields():
 def test_a_load_state_from_another_start_is_solved_again(stored, monkeypatch):
     """Under --path the ON or OFF equilibrium a one-clutch state starts from can be the
     motion's end instead of the two starts' one: the store keys load states by their start."""
-    from kgarment.design.loads import activation_equilibria
+    from kgarment.evaluate.loads import activation_equilibria
 
     folder, design, first = stored
     ev, _ = _evaluator(EquilibriumStore(folder))
@@ -171,7 +169,7 @@ def test_the_full_garment_is_solved_once_per_machine(tmp_path, monkeypatch):
     shared store in kgarment's cache: a second evaluator of the same problem, in a new
     process and without a run folder, solves only the design's states and gives the same
     numbers; a design's own solves are not kept there."""
-    from kgarment.design.store import SHARED
+    from kgarment.case.store import SHARED
 
     monkeypatch.setenv("KGARMENT_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.delenv("KGARMENT_SOLVE_CACHE", raising=False)
@@ -186,7 +184,7 @@ def test_the_full_garment_is_solved_once_per_machine(tmp_path, monkeypatch):
     assert calls == [2 * len(first.states)]  # the design from its two starts, nothing else
     assert [(s.rho, s.energy, s.energy_full) for s in again.states] == \
         [(s.rho, s.energy, s.energy_full) for s in first.states]
-    full = ev2.setup.solve(np.ones(len(design)), [s for _, s in ev2.keyed()])  # iteration 0 of a run
+    full = ev2.case.solve(np.ones(len(design)), [s for _, s in ev2.keyed()])  # iteration 0 of a run
     assert calls == [2 * len(first.states)]  # read back: solved by the first evaluator
     assert all(r.converged for r in full)
     assert sorted(version.glob("*.npz")) == kept
@@ -200,16 +198,16 @@ def test_the_full_garment_is_solved_once_per_machine(tmp_path, monkeypatch):
 
 
 def test_the_shared_store_can_be_turned_off_and_keeps_only_converged_solves(tmp_path, monkeypatch):
-    from kgarment.design.store import SHARED
+    from kgarment.case.store import SHARED
 
     monkeypatch.setenv("KGARMENT_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setenv("KGARMENT_SOLVE_CACHE", "0")
     ev, design = _evaluator()
-    ev.setup.solve(np.ones(len(design)), [s for _, s in ev.keyed()])
+    ev.case.solve(np.ones(len(design)), [s for _, s in ev.keyed()])
     assert not (tmp_path / "cache" / SHARED).exists()
     monkeypatch.setenv("KGARMENT_SOLVE_CACHE", "1")
     stopped = SolverOptions(tol=1e-5, max_iter=2, rescue_shifts=0)  # cannot converge in two iterations
-    (r,) = ev.setup.solve(np.ones(len(design)), [ev.keyed()[0][1]], options=stopped)
+    (r,) = ev.case.solve(np.ones(len(design)), [ev.keyed()[0][1]], options=stopped)
     assert not r.converged
     assert not list((tmp_path / "cache" / SHARED).rglob("*.npz"))  # solved again, and reported, next time
 
@@ -219,7 +217,7 @@ def test_the_shared_store_keeps_the_latest_code_versions_only(tmp_path, monkeypa
     folders of all but the most recently used versions, and nothing else in its folder."""
     import os
 
-    from kgarment.design.store import SHARED, SHARED_VERSIONS, shared_store
+    from kgarment.case.store import SHARED, SHARED_VERSIONS, shared_store
 
     monkeypatch.setenv("KGARMENT_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.delenv("KGARMENT_SOLVE_CACHE", raising=False)

@@ -1,4 +1,4 @@
-"""One design for several bodies ([body] phenotypes, kgarment.design.wearers) and
+"""One design for several bodies ([body] phenotypes, kgarment.case.wearers) and
 ``kgarment sizes``.
 
 Invariants, not today's numbers: a size range of two identical wearers is the one-body
@@ -16,7 +16,8 @@ import pytest
 from tiny_problems import TINY_SLEEVE
 
 from kgarment.cli import main
-from kgarment.design import Evaluator, load_design, load_design_history
+from kgarment.design import load_design, load_design_history
+from kgarment.evaluate import Evaluator
 from kgarment.problem import load_problem, parse_problem, problem_to_dict
 
 SLEEVE = TINY_SLEEVE + """[body]

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from tiny_problems import TINY_SLEEVE
 
-from kgarment.design.frames import objective_shares
-from kgarment.design.objective import combine_sensitivities, combined_objective, motion_weights
+from kgarment.case.frames import objective_shares
 from kgarment.errors import KgarmentError
+from kgarment.optimize.objective import combine_sensitivities, combined_objective, motion_weights
 from kgarment.problem import parse_problem, problem_to_dict
 
 WEIGHTED = TINY_SLEEVE + """[design]

@@ -34,7 +34,7 @@ def test_example_parses_and_round_trips(path, anny_body, tmp_path):
     assert again.motions == p.motions and again.garment == p.garment and again.activation == p.activation
     assert again.design == p.design and again.solver == p.solver and again.materials == p.materials
     assert [s.name for s in clutch_specs(again, anny_body)] == [s.name for s in specs]
-    from kgarment.design.setup import activation_vectors
+    from kgarment.case.setup import activation_vectors
 
     sets = activation_vectors(p, [s.name for s in specs])  # every set names clutches of the layout
     assert set(sets) == {m for m, _ in p.activation} and all(g.any() for g in sets.values())

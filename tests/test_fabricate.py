@@ -162,7 +162,7 @@ def test_minimum_width_opens_thin_necks():
     blobs = (ang < 0.6) | (ang > 1.4)  # two 3 cm wide blocks ...
     neck = np.abs(cen[:, 2] - 0.1) < 0.003  # ... joined by a 5 mm neck
     c = clean_design(F, V, blobs | neck, (), None, CleanupOptions(min_island_area=0, max_hole_area=0, min_width=0.01))
-    from kgarment.design.metrics import islands
+    from kgarment.evaluate.metrics import islands
 
     assert islands(F, blobs | neck) == 1
     assert c.faces_opened > 0 and islands(F, c.after) == 2  # the neck is cut, stubs may stay

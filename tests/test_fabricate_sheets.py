@@ -76,7 +76,7 @@ def test_no_two_labels_overlap_and_every_clutch_is_named(fab_out):
 
 
 def test_unloaded_clutch_is_flagged(fab_out, tmp_path):
-    from kgarment.design.loads import ClutchLoad, LoadReport, MotionEnergy
+    from kgarment.evaluate.loads import ClutchLoad, LoadReport, MotionEnergy
 
     fab, _ = fab_out
     name = fab.strips[0].name

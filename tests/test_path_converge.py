@@ -1,5 +1,5 @@
 """The motion from rest solved until its frame count no longer matters
-(kgarment.design.path_converge, ``evaluate --path K --converge``)."""
+(kgarment.evaluate.path_converge, ``evaluate --path K --converge``)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from tiny_problems import TINY_SLEEVE
 
-from kgarment.design.evaluate import Evaluator
-from kgarment.design.path import PathFrame, PathReport, path_forces
-from kgarment.design.path_converge import FrameCheck, converged_path, frame_gap, merged
+from kgarment.evaluate.evaluator import Evaluator
+from kgarment.evaluate.path import PathFrame, PathReport, path_forces
+from kgarment.evaluate.path_converge import FrameCheck, converged_path, frame_gap, merged
 from kgarment.problem import build_clutches, build_garment, parse_problem
 
 

@@ -1,4 +1,4 @@
-"""Where a frame of the force over the motion starts (kgarment.design.path.predicted): on a
+"""Where a frame of the force over the motion starts (kgarment.evaluate.path.predicted): on a
 smooth path of equilibria the secant predictor lands much closer to the next equilibrium
 than the last one carried with the body, and Newton needs fewer iterations from it."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kgarment.design.path import carried, predicted
+from kgarment.evaluate.path import carried, predicted
 from kgarment.sim import SimState, SolverOptions, build_model, solve_states
 from kgarment.sim.model import Motion
 from kgarment.sim.synthetic import Tube, sphere_body

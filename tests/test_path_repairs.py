@@ -1,4 +1,4 @@
-"""The force-over-the-motion path's repairs of a switched equilibrium (kgarment.design.path).
+"""The force-over-the-motion path's repairs of a switched equilibrium (kgarment.evaluate.path).
 
 A path's frames are solved one after the other; where the energy drops by more than
 PATH_JUMP from frame i - 1 to frame i, frame i - 1 is re-solved from frame i's equilibrium
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kgarment.design.path import PATH_JUMP, _jump_repairs
+from kgarment.evaluate.path import PATH_JUMP, _jump_repairs
 
 
 @dataclass

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from kgarment.design.path import PathFrame, PathReport
+from kgarment.evaluate.path import PathFrame, PathReport
 from kgarment.reproduce.figures import force_curves, force_stats
 
 

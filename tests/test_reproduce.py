@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from cli_runner import run_cli
 
-from kgarment.design.evaluate import MULTISTABLE
+from kgarment.case.starts import MULTISTABLE
 from kgarment.garment.topology import triangle_areas
 from kgarment.reproduce.baselines import manual_design, random_design
 
@@ -99,7 +99,7 @@ def test_manual_strips_reach_a_free_ring_never_their_own_clutch():
     d = manual_design(v, f, [(a, b)], [ring], np.zeros(len(f), bool), budget=0.1) > 0.5
     assert d[ring].all() and d[a].all() and d[b].all()
     # below the ring: two strips, one from each end, not one joining the ends
-    from kgarment.design.metrics import islands
+    from kgarment.evaluate.metrics import islands
 
     below = d & (c[:, 1] < 0.19)
     assert islands(f, below) == 2
@@ -115,7 +115,7 @@ def test_manual_strips_of_one_clutch_go_to_two_anchors():
     a = faces_near(v, f, np.array([0.05, 0.1, 0.0]), 0.008)
     b = faces_near(v, f, np.array([0.08, 0.1, 0.0]), 0.008)
     d = manual_design(v, f, [(a, b)], [], held, budget=0.06) > 0.5
-    from kgarment.design.metrics import islands
+    from kgarment.evaluate.metrics import islands
 
     assert islands(f, d) == 2  # two strips, joined only through the clutch
     left, right = d & (c[:, 0] < 0.01), d & (c[:, 0] > 0.19)
@@ -131,17 +131,15 @@ def test_the_manual_baseline_loads_a_clutch_nearest_one_ring():
     with both ends strapped to the bottom ring (the nearest anchor of each) the clutch would
     carry nothing; the manual baseline takes its upper end to the top ring, so switching the
     clutch on carries the pull (share of the ON - OFF energy, method.md section 9)."""
-    from kgarment.design import Evaluator
-    from kgarment.design.setup import DesignSetup
-    from kgarment.problem import BesoParams
+    from kgarment.case import Case
+    from kgarment.evaluate import Evaluator
     from kgarment.sim import SolverOptions, build_model
     from kgarment.sim.synthetic import Tube
 
     tube = Tube(0.05, 0.0, 0.3, 48, 31)
     clutch = tube.clutch("low", 0.0, 0.04, 0.12, 0.01, 16)
     model = build_model(tube.vertices, tube.faces, [clutch], preset="paper")
-    setup = DesignSetup.build(model, {"pull": tube.motion("pull", 0.05, 0.0)}, "active", BesoParams(),
-                              SolverOptions(tol=1e-5, max_iter=300))
+    setup = Case.build(model, {"pull": tube.motion("pull", 0.05, 0.0)}, "active", SolverOptions(tol=1e-5, max_iter=300))
     held = np.zeros(len(tube.faces), bool)
     held[np.concatenate([tube.ring_faces(0), tube.ring_faces(tube.n_z - 2)])] = True
     design = manual_design(tube.vertices, tube.faces, setup.end_faces, [], held, budget=0.08)

@@ -71,7 +71,7 @@ def test_the_reproduction_keeps_the_papers_clutches_in_the_papers_experiments():
 
 
 def test_the_all_on_problem_switches_every_clutch_on_in_every_motion():
-    from kgarment.design.setup import activation_vectors
+    from kgarment.case.setup import activation_vectors
     from kgarment.reproduce.catalog import BY_NAME, RESOLUTIONS
     from kgarment.reproduce.experiments import all_on_problem, experiment_problem
 

@@ -116,7 +116,7 @@ def test_the_reference_is_the_stabler_of_its_two_starts(anny_body):
     shirt in arms forward while the skin-tight start lay on the body's mesh (2026-11-26: 50.0 J
     against 39.8 J of total energy); with it on the contact surface (SIM_MODEL 2) they end
     within 0.1% (30.73 and 30.74 J)."""
-    from kgarment.design import Evaluator
+    from kgarment.evaluate import Evaluator
     from kgarment.problem import example_path, load_problem, override
 
     p = override(load_problem(example_path("shirt_three_motions")), subdivision=0, motions=["arms_forward"])
@@ -126,8 +126,8 @@ def test_the_reference_is_the_stabler_of_its_two_starts(anny_body):
     on, off = keyed[("arms_forward", "on")], keyed[("arms_forward", "off")]
     ref_on, ref_off = ev.reference([(("arms_forward", "on"), on), (("arms_forward", "off"), off)])
     full = np.ones(ev.n_faces)
-    (skin,) = ev.setup.solve(full, [on])
-    (worn,) = ev.setup.solve(full, [on], warm_start=[ref_off.x])
+    (skin,) = ev.case.solve(full, [on])
+    (worn,) = ev.case.solve(full, [on], warm_start=[ref_off.x])
     assert skin.converged and worn.converged
     # no higher than either start's equilibrium (these solves stop at the design tolerance,
     # the reference at the evaluation's: 1e-3 of the energy covers the difference)

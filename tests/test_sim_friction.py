@@ -240,7 +240,7 @@ def test_what_slipped_stays_slipped_where_friction_holds_the_frame_before():
     the 2 cm pose for another frame does not move it (no creep), where anchoring at the
     equilibrium itself lets the stuck cloth give way by the skin's give.  The anchor is part
     of the state's digest (``design.store``)."""
-    from kgarment.design.store import state_digest
+    from kgarment.case.store import state_digest
     from kgarment.sim import held_after
 
     R = 0.05

@@ -26,6 +26,9 @@ STAGES = (
     ("kgarment.render",),
     ("kgarment.sim",),
     ("kgarment.problem",),
+    ("kgarment.case",),
+    ("kgarment.evaluate",),
+    ("kgarment.optimize",),
     ("kgarment.design",),
     ("kgarment.fabricate",),
     ("kgarment.reproduce", "kgarment.studio", "kgarment.sweep"),
@@ -110,7 +113,7 @@ def test_the_checks_see_a_cycle_and_a_backward_import():
     assert _cycles(["a", "b", "c"], [("a", "b"), ("b", "c"), ("c", "a")]) == [["a", "b", "c"]]
     assert _cycles(["a", "b"], [("a", "b")]) == []
     assert _stage("kgarment.sim.solve") > _stage("kgarment.clutch.strip")
-    assert _stage("kgarment.cli.design") > _stage("kgarment.design.loop")
+    assert _stage("kgarment.cli.design") > _stage("kgarment.optimize.loop")
 
 
 def test_modules_stay_short():

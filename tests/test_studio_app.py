@@ -162,7 +162,7 @@ def test_force_over_the_motion_on_the_painted_garment(studio):
     """The page's force over the motion is ``evaluate --path``'s on the studio's own garment:
     frames from rest ON and OFF, the work counted from rest, a picture and a table; with
     the attachments painted away from the cuff, the frames hold the painted faces."""
-    from kgarment.design.path import PathReport
+    from kgarment.evaluate.path import PathReport
 
     st = studio.state
     paint(studio, faces=(100, 200, 300, 400, 500), radius=0.04)
@@ -186,7 +186,7 @@ def test_force_over_the_motion_on_the_painted_garment(studio):
 
 
 def test_the_motion_frames_take_the_painted_attachments(studio):
-    from kgarment.design.frames import REST, frame_motions
+    from kgarment.case.frames import REST, frame_motions
 
     st = studio.state
     attached = np.zeros(st.n_faces, bool)
@@ -205,7 +205,7 @@ def test_one_evaluator_per_configuration(studio):
 
     sims, st = studio.sims, studio.state
     first = sims.evaluator(SimInputs.of(st))
-    assert first.setup.solver.tol == min(st.problem.solver.tol, 1e-4)
+    assert first.case.solver.tol == min(st.problem.solver.tol, 1e-4)
     paint(studio)
     st.set_budget(0.3)
     assert sims.evaluator(SimInputs.of(st)) is first
@@ -325,7 +325,8 @@ def test_cli_overrides_cannot_change_the_garment_of_a_session(studio, tmp_path):
 def test_studio_rho_equals_kgarment_evaluate(anny_body):
     """The studio's simulation (one state at a time, its own garment and clutch strips)
     gives the numbers of ``kgarment evaluate`` (all states together, built from the problem)."""
-    from kgarment.design import Evaluator, design_values
+    from kgarment.case.values import design_values
+    from kgarment.evaluate import Evaluator
     from kgarment.studio.session import build_state
     from kgarment.studio.simulations import SimInputs, simulate_design
 
@@ -394,7 +395,7 @@ def test_activation_sets_pick_what_a_motion_switches_on(studio):
     assert st.problem.activation_of(m) == {"elbow_outer.R": 1.0}
     assert studio.panel.set_fields[m].value == "elbow_outer.R" and "switches on: elbow_outer.R" in last(studio)[0]
     ev = sims.evaluator(SimInputs.of(st))
-    assert ev is not first and list(ev.setup.on_activation(m)) == [1.0, 0.0]
+    assert ev is not first and list(ev.case.on_activation(m)) == [1.0, 0.0]
     with pytest.raises(KgarmentError, match="unknown clutch 'nope'; the clutches are: elbow_outer.R, elbow_inner.R"):
         st.set_activation(m, ["nope"])
     st.edit_clutch("elbow_outer.R", name="outer")

@@ -30,7 +30,7 @@ ADAPTIVE_VERTICES = 4000  # evaluations solve garments of more vertices with the
                           # shifted exact one (kgarment.sim.newton, "auto"; the shirt: 1,702 vertices at
                           # subdivision 0, 6,635 at 1, 26,188 at 2; the arm sleeve 302, 1,167, 4,586)
 NESTED_VERTICES = 4000  # evaluations and a design run's iteration 0 start garments of more vertices (subdivided
-                        # ones) from their equilibria one level down (kgarment.design.levels: nested
+                        # ones) from their equilibria one level down (kgarment.case.levels: nested
                         # iteration); smaller garments, where the slide from the skin-tight start is cheap,
                         # from their own starts
 MAX_NEWTON = 200       # [solver] max_iter: Newton iterations per state
@@ -55,7 +55,7 @@ FILTER_RADIUS = 0.02   # metres, the "radius" filter's reach
 CONVERGENCE_TOL = 1e-3  # relative change of the objective over `window` iterations
 WINDOW = 5
 MAX_ITERATIONS = 200
-# The step guard (kgarment.design.guard, [design] guard): a motion's objective term below this
+# The step guard (kgarment.optimize.guard, [design] guard): a motion's objective term below this
 # (J per J of the fully reinforced garment's ON energy) is no load path worth guarding; the
 # guard lets a step through after this many rejections in a row, and keeps the guarded faces'
 # area below this share of the target area.
@@ -76,7 +76,7 @@ SOLVER_RANGES = {"tol": (1e-14, 1.0), "evolution_tol": (1e-14, 1.0), "max_iter":
 PATH_FRAMES = 10  # frames of the motion from rest (the last one the target pose): `evaluate --path`'s default and
                   # [solver] path_frames' (path_start's check, the evaluator's own, so that the loop reads what it reads)
 PATH_CONVERGE_TOL = 0.05  # `evaluate --path K --converge`: the largest energy change between two frame counts,
-                          # relative to the motion's ON energy at the target (kgarment.design.path_converge)
+                          # relative to the motion's ON energy at the target (kgarment.evaluate.path_converge)
 PATH_MAX_FRAMES = 80      # and the frames of the finest path it solves
 SUBDIVISIONS = (0, 1, 2, 3)
 NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")  # a motion or clutch name: file names are made of it
@@ -106,7 +106,7 @@ SLIPPING = 0.98            # a clutch slips where its tension reaches this share
 # ----- judging a design as a garment (method.md section 9) -----------------------------------
 LOADED_SHARE = 0.10    # a clutch is "loaded" in a motion when switching it on alone gives, or
                        # switching it off alone loses, at least this share of the energy that
-                       # switching all clutches on adds (kgarment.design.loads)
+                       # switching all clutches on adds (kgarment.evaluate.loads)
 MIN_GAIN = 0.01        # below this share of the OFF energy, switching the clutches on changes nothing
 LOAD_TOL = 1e-3        # solver tolerance of the one-clutch-ON states behind the shares
 PLAN_EXHAUSTIVE = 6     # kgarment plan tries every clutch subset up to this many clutches, greedy sets beyond
@@ -114,6 +114,6 @@ PLAN_KEEP = 0.9         # the recommended set of a motion keeps this share of it
 PLAN_LOCK = 0.5         # a set "locks" another motion where it resists it with this share of its all-ON resistance
 UNCONTROLLABLE = 0.005  # a motion where switching the clutches ON changes the fully reinforced garment's
                         # energy by less than this share is reported as one they cannot control
-                        # (kgarment.design.control; measured with SIM_MODEL 2, paper preset, subdivision
+                        # (kgarment.evaluate.control; measured with SIM_MODEL 2, paper preset, subdivision
                         # 0: shirt motions 1.4-4.2%, a 120-degree overhead reach 0.34% (design.control); with model 1:
                         # shirt 1-3% with either preset, sleeves 6-14%, the reach 0.04-0.07%)

@@ -33,18 +33,18 @@ DESIGN_OUT = "runs/design"  # kgarment design --out's default
 def run_design(problem, out, *, resume: bool, force: bool, device: str, quiet: bool, evaluate: bool = True) -> int:
     """Open (or resume) a run folder, iterate with a progress bar, print the summary."""
     from kgarment.design import finish, open_run
-    from kgarment.design.beso import expected_iterations
+    from kgarment.optimize.beso import expected_iterations
 
     dr = open_run(None if resume else problem, out, resume=resume, force=force, device=device)
     if not quiet:
         print(dr.problem.describe())
     setup = dr.setup
     print(f"garment {dr.garment.name}: {dr.garment.n_faces} faces, {len(dr.strips)} clutches, "
-          f"{len(setup.states())} states per iteration ({setup.solver.workers} worker processes); run folder {dr.run}")
-    motions = list(setup.motions)
+          f"{len(setup.case.states())} states per iteration ({setup.case.solver.workers} worker processes); run folder {dr.run}")
+    motions = list(setup.case.motions)
     last = [dr.state]
     t0 = time.time()
-    with design_progress(expected_iterations(setup.params), dr.state.iteration, motions, quiet) as update:
+    with design_progress(expected_iterations(setup.beso.params), dr.state.iteration, motions, quiet) as update:
         def progress(st):
             last[0] = st
             update(st)
@@ -63,11 +63,11 @@ def print_summary(dr, seconds: float) -> None:
     st = dr.state
     frames = dr.problem.solver.path_frames
     row = st.metrics[-1]
-    print(f"\n{len(st.metrics)} iterations in {seconds:.0f} s; last iteration {rho_line(row, list(dr.setup.motions))}")
+    print(f"\n{len(st.metrics)} iterations in {seconds:.0f} s; last iteration {rho_line(row, list(dr.setup.case.motions))}")
     if dr.evaluation is not None:  # and dr.selection: how finish chose it
         sel = dr.selection
         k = sel.iteration
-        checked = dr.setup.path_start > 0
+        checked = dr.setup.beso.path_start > 0
         how = ("the best objective at the target area" + (" among the iterations solved over the motion"
                                                            if checked else ""))
         if len(sel.tried) > 1:
@@ -80,7 +80,7 @@ def print_summary(dr, seconds: float) -> None:
     print(f"results in {dr.run}/: metrics.csv, metrics.json, progress.png, designs.npz, final/")
     for path in dr.paths:
         print(f"  {path}")
-    if dr.evaluation is not None and dr.evaluation.loads is not None and not dr.setup.wearers:  # clutches to feel
+    if dr.evaluation is not None and dr.evaluation.loads is not None and not dr.setup.case.wearers:  # clutches to feel
         print(f"next: the force each clutch carries over the motion: kgarment evaluate {dr.run} --path {frames}; "
               f"which clutches to switch on for which motion: kgarment plan {dr.run}; cut files: "
               f"kgarment fabricate {dr.run}")
@@ -150,7 +150,7 @@ def cmd_sizes(args) -> int:
                             f"[{{name = ...}}, ...], e.g. the example {SIZES_EXAMPLE})")
     motions = list(problem.motions)  # run_sizes checks --out before any work
     print(f"wearers: {', '.join(problem.body.names)}; motions: {', '.join(motions)}; runs in {args.out}/runs")
-    from kgarment.design.beso import expected_iterations
+    from kgarment.optimize.beso import expected_iterations
 
     total = expected_iterations(problem.design.beso)
     bars = contextlib.ExitStack()
@@ -174,11 +174,12 @@ def cmd_sizes(args) -> int:
 
 def cmd_evaluate(args) -> int:
 
-    from kgarment.design import Evaluator, load_design, parse_design_source
+    from kgarment.case.store import run_store
+    from kgarment.design import load_design, parse_design_source
     from kgarment.design.driver import run_inputs
-    from kgarment.design.loads import load_chart
     from kgarment.design.run import iteration_of
-    from kgarment.design.store import run_store
+    from kgarment.evaluate import Evaluator
+    from kgarment.evaluate.loads import load_chart
     from kgarment.io import atomic_write_text, check_output_file, json_text
     from kgarment.problem import load_problem, override
 
@@ -224,15 +225,15 @@ def cmd_evaluate(args) -> int:
     print(f"design: {src.run} iteration {k} ({100 * (design > 0.5).mean():.1f}% of faces reinforced)")
     path = None
     if args.path:  # first: the motion's end from rest competes with the evaluation's two starts
-        from kgarment.design.path import path_forces
-        from kgarment.design.path_plot import path_plot
+        from kgarment.evaluate.path import path_forces
+        from kgarment.evaluate.path_plot import path_plot
 
         def progress(line: str) -> None:
             print(f"  {line}", flush=True)
 
         checks = []
         if args.converge:
-            from kgarment.design.path_converge import converged_path
+            from kgarment.evaluate.path_converge import converged_path
 
             print(f"force over the motion: from {args.path} frames from rest to the target pose, doubled until two "
                   f"counts agree within {100 * C.PATH_CONVERGE_TOL:g}% (at most {C.PATH_MAX_FRAMES}), ON and OFF")
@@ -271,14 +272,14 @@ def cmd_evaluate(args) -> int:
 
 
 def evaluate_on_phenotype(args, p, phen, run_body, garment, design) -> dict:
-    """The design evaluated on the body with ``--phenotype`` (:mod:`kgarment.design.transfer`):
+    """The design evaluated on the body with ``--phenotype`` (:mod:`kgarment.case.transfer`):
     the same garment faces and clutch spots on the other body; printed, and returned for
     the JSON (the phenotype and the evaluation)."""
     import dataclasses
 
-    from kgarment.design import Evaluator
-    from kgarment.design.transfer import clutches_on, garment_on
-    from kgarment.design.wearers import on_phenotype
+    from kgarment.case.transfer import clutches_on, garment_on
+    from kgarment.case.wearers import on_phenotype
+    from kgarment.evaluate import Evaluator
     from kgarment.problem import build_body, clutch_specs
 
     other = on_phenotype(p, phen)

@@ -32,7 +32,8 @@ def resolve_source(design: str, problem: str | None):
 
 
 def cmd_fabricate(args) -> int:
-    from kgarment.design import Evaluator, load_design
+    from kgarment.design import load_design
+    from kgarment.evaluate import Evaluator
     from kgarment.fabricate import (
         FabricationOptions,
         check_design_mesh,

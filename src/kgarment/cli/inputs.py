@@ -103,7 +103,7 @@ def cmd_clutches(args) -> int:
         strips = build_clutches(p, body, garment)
         specs = strips
         # the names the problem gives its clutches elsewhere, checked as a design checks them
-        from kgarment.design.setup import activation_vectors
+        from kgarment.case.setup import activation_vectors
         from kgarment.problem.build import holding_forces
 
         activation_vectors(p, [s.name for s in strips])
@@ -118,14 +118,14 @@ def cmd_clutches(args) -> int:
         print(f"  {c.name:18s} {100 * c.length:5.1f} cm x {100 * c.width:.1f} cm  from {a.round(3)} to {b.round(3)}")
     print(f"wrote {cfile} (portable: rest coordinates) and {png}")
     if args.action == "suggest" and not args.no_check and strips:
+        from kgarment.case import case_from_problem
         from kgarment.constants import UNCONTROLLABLE
-        from kgarment.design.control import clutch_control, control_table
-        from kgarment.design.setup import setup_from_problem
+        from kgarment.evaluate.control import clutch_control, control_table
 
         print("can each clutch be felt? the fully reinforced garment's energy change with only that clutch ON "
               f"(* at least {100 * UNCONTROLLABLE:g}%; the paper's shirt motions: 1-3% with all three ON):")
-        setup = setup_from_problem(p, body, garment, strips, "evaluate", args.device, "active")
-        for line in control_table(clutch_control(setup, [c.name for c in strips])):
+        case = case_from_problem(p, body, garment, strips, device=args.device, objective="active")
+        for line in control_table(clutch_control(case, [c.name for c in strips])):
             print("  " + line)
     return 0
 

@@ -12,11 +12,12 @@ from kgarment.constants import PLAN_EXHAUSTIVE
 
 def cmd_plan(args) -> int:
 
-    from kgarment.design import Evaluator, load_design, parse_design_source
+    from kgarment.design import load_design, parse_design_source
     from kgarment.design.driver import run_inputs
-    from kgarment.design.plan import make_plan, plan_markdown
     from kgarment.design.run import iteration_of
     from kgarment.errors import KgarmentError
+    from kgarment.evaluate import Evaluator
+    from kgarment.evaluate.plan import make_plan, plan_markdown
     from kgarment.io import atomic_write_text, check_output_folder, json_text
     from kgarment.problem import load_problem, override
 
@@ -37,7 +38,7 @@ def cmd_plan(args) -> int:
     p, body, garment, strips = run_inputs(src.run, p)
     if not strips:
         raise KgarmentError(f"{src.run} has no clutches: there is nothing to switch")
-    from kgarment.design.store import run_store
+    from kgarment.case.store import run_store
 
     ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device,
                                 store=run_store(src.run))  # the run's equilibria
@@ -48,7 +49,7 @@ def cmd_plan(args) -> int:
     t0 = time.time()
     known = None
     if args.path:  # the motion's end from rest competes with the two starts, as in evaluate --path
-        from kgarment.design.path import path_forces
+        from kgarment.evaluate.path import path_forces
 
         if p.body.phenotypes:
             raise KgarmentError("--path: the motion from rest is solved on one body; for a multi-body design "

@@ -9,8 +9,9 @@ from kgarment.errors import KgarmentError
 def cmd_simulate(args) -> int:
     import numpy as np
 
-    from kgarment.design import Evaluator, load_design
+    from kgarment.design import load_design
     from kgarment.design.report import write_equilibrium
+    from kgarment.evaluate import Evaluator
     from kgarment.io import check_kind, make_folder
     from kgarment.problem import build_body, build_clutches, build_garment
     from kgarment.sim import clutch_tensions
@@ -30,28 +31,28 @@ def cmd_simulate(args) -> int:
     strips = build_clutches(p, body, garment)
     design = load_design(args.design, garment.n_faces) if args.design else np.ones(garment.n_faces)
     ev = Evaluator.from_problem(p, body=body, garment=garment, strips=strips, device=args.device)
-    g = parse_activation(args.clutches, ev.setup.n_clutches)
+    g = parse_activation(args.clutches, ev.case.n_clutches)
     keyed = ev.activation_states(g, motions, label=args.clutches)
     results = ev.equilibria(design, keyed)
-    print(f"solver: {ev.setup.solver.method}, tolerance {ev.setup.solver.tol:g}, materials {p.materials.preset}, "
+    print(f"solver: {ev.case.solver.method}, tolerance {ev.case.solver.tol:g}, materials {p.materials.preset}, "
           f"clutches {p.clutch_spec().hardware.model}")
-    hold = ev.setup.model.holding(g)
+    hold = ev.case.model.holding(g)
     make_folder(out, "simulation")  # only now, after the solves: a failed simulation leaves no folder
     for ((m, _), state), r in zip(keyed, results):
-        w = ev.setup.wearers.get(m)  # a multi-body problem's: this wearer's body and garment
-        on, pose, model = (body, m, ev.setup.model) if w is None else (w.body, w.motion, w.model)
+        w = ev.case.wearers.get(m)  # a multi-body problem's: this wearer's body and garment
+        on, pose, model = (body, m, ev.case.model) if w is None else (w.body, w.motion, w.model)
         files = write_equilibrium(out, m, on.vertices(pose), on.faces, model, r, g,
                                   f"{garment.name} - {m} - clutches {args.clutches}")
         c = r.convergence
         terms = ", ".join(f"{k} {v:.3g}" for k, v in r.energy.items())
         print(f"{m}: {'converged' if c.converged else 'NOT CONVERGED'} in {c.iterations} iterations, "
               f"{c.wall_time:.1f} s; energy {r.total_energy:.4g} J ({terms})")
-        if ev.setup.n_clutches:
+        if ev.case.n_clutches:
             tension = clutch_tensions(model, design, state, r.x)
             print("  clutch tension: " + ", ".join(
                 f"{c.name} {t:.1f} N" + (f" (holds {h:.0f} N{', slips' if slides(t, h) else ''})"
                                          if np.isfinite(h) else "")
-                for c, t, h in zip(ev.setup.model.clutches, tension, hold)))
+                for c, t, h in zip(ev.case.model.clutches, tension, hold)))
         print(f"  wrote {files[0]} and {files[-1]}")
     return 0 if all(r.converged for r in results) else 1
 

@@ -37,7 +37,7 @@ def cmd_sweep(args) -> int:
         f"a local Ray cluster of {args.workers or os.cpu_count()} CPUs"
     print(f"sweep {sweep.path}: {len(sweep.tasks)} tasks, {len(sweep.tasks) - len(todo)} finished already"
           + (f", {len(todo)} to run on {where}" if todo else "") + f"; folder {out}")
-    from kgarment.design.beso import expected_iterations
+    from kgarment.optimize.beso import expected_iterations
     from kgarment.sweep.execute import run_sweep
 
     expected = {t.name: expected_iterations(t.problem.design.beso) for t in sweep.tasks}

@@ -5,7 +5,7 @@ The paper placed clutches by hand over high-strain areas. We measure the strain 
 where plain stretch cloth goes), pick the most stretched spots of each motion in turn with
 a minimum separation, and align each clutch with the principal stretch direction there.
 Whether a suggested clutch can be felt in a motion is then checked by simulation
-(:func:`kgarment.design.control.clutch_control`, printed by ``kgarment clutches suggest``).
+(:func:`kgarment.evaluate.control.clutch_control`, printed by ``kgarment clutches suggest``).
 The result is a starting point for the designer to edit.
 """
 

@@ -1,26 +1,20 @@
-"""Automatic design: BESO with the ON/OFF energy-differential objective.
+"""Design runs: the one run driver (problem -> finished run folder: ``driver``), run folders,
+checkpoints and design sources (``run``), the coarse levels of a coarse-to-fine run
+(``coarse``), the iteration a run reports (``reported``), its final files and renders
+(``report``) and one design for a size range (``sizes``).
 
-``beso`` (the update rule, filters, schedule), ``objective`` (how states combine),
-``metrics`` (rho, islands, clutch ends), ``setup`` (the frozen precomputed setup),
-``loop`` (one iteration as pure steps), ``evaluate`` (the one design evaluator), ``run``
-(run folders, checkpoints, design sources), ``report`` (final files and renders) and
-``driver`` (the one run driver: problem -> finished run folder).
+The stages below it: :mod:`kgarment.case` (the solvable problem on a body),
+:mod:`kgarment.evaluate` (measuring a design) and :mod:`kgarment.optimize` (BESO).
 """
 
-from kgarment.design.beso import BesoParams, design_values, update_design
 from kgarment.design.driver import DesignRun, finish, open_run
-from kgarment.design.evaluate import DesignEvaluation, Evaluator, StateEvaluation
-from kgarment.design.loop import LoopState, initial_state, iterate, run_loop
-from kgarment.design.objective import OBJECTIVES
 from kgarment.design.run import (
-           DesignSource,
-           load_design,
-           load_design_history,
-           parse_design_source,
-           run_status,
+    DesignSource,
+    load_design,
+    load_design_history,
+    parse_design_source,
+    run_status,
 )
-from kgarment.design.setup import DesignSetup, setup_from_problem
 
-__all__ = ["OBJECTIVES", "BesoParams", "DesignEvaluation", "DesignRun", "DesignSetup", "DesignSource", "Evaluator",
-           "LoopState", "StateEvaluation", "design_values", "finish", "initial_state", "iterate", "load_design", "load_design_history",
-           "open_run", "parse_design_source", "run_loop", "run_status", "setup_from_problem", "update_design"]
+__all__ = ["DesignRun", "DesignSource", "finish", "load_design", "load_design_history", "open_run",
+           "parse_design_source", "run_status"]

@@ -22,15 +22,12 @@ import numpy as np
 import tomli_w
 
 from kgarment.body import Body
+from kgarment.case.setup import case_from_problem
+from kgarment.case.store import run_store
+from kgarment.case.values import design_values
 from kgarment.clutch import ClutchSpec, ClutchStrip, save_clutches
 from kgarment.clutch.landmarks import body_landmarks
-from kgarment.design.beso import design_values
-from kgarment.design.control import Control, control_check
-from kgarment.design.evaluate import DesignEvaluation, Evaluator
-from kgarment.design.loads import load_chart
-from kgarment.design.loop import LoopState, initial_state, iterate, run_loop
-from kgarment.design.path import path_forces
-from kgarment.design.refine import coarse_levels, run_coarse, transfer
+from kgarment.design.coarse import run_coarse
 from kgarment.design.report import finish_run
 from kgarment.design.reported import Reported, select_reported
 from kgarment.design.run import (
@@ -41,11 +38,16 @@ from kgarment.design.run import (
     save_checkpoint,
     write_history,
 )
-from kgarment.design.setup import DesignSetup, setup_from_problem
-from kgarment.design.store import run_store
 from kgarment.errors import Cancelled, KgarmentError
+from kgarment.evaluate.control import Control, control_check
+from kgarment.evaluate.evaluator import DesignEvaluation, Evaluator
+from kgarment.evaluate.loads import load_chart
+from kgarment.evaluate.path import path_forces
 from kgarment.garment import Garment
 from kgarment.io import atomic_save_npz, atomic_write_text, json_text, replace_folder
+from kgarment.optimize.loop import LoopState, initial_state, iterate, run_loop
+from kgarment.optimize.refine import coarse_levels, transfer
+from kgarment.optimize.setup import DesignSetup, setup_from_problem
 from kgarment.problem import (
     Problem,
     build_body,
@@ -108,7 +110,7 @@ def open_run(problem: Problem | None, run, *, resume: bool = False, force: bool 
         garment = _with_attachments(garment, run / ATTACHMENTS)
     specs = clutch_specs(problem, body) if clutches is None or resume else list(clutches)
     strips = tuple(build_clutches(problem, body, garment, specs))
-    setup = setup_from_problem(problem, body, garment, strips, "design", device)
+    setup = setup_from_problem(problem, body, garment, strips, device)
     if not resume:
         replace_folder(run, lambda tmp: write_inputs(tmp, problem, body, garment, specs, custom_garment),
                        "run")
@@ -171,7 +173,7 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
     folder stays resumable).  Returns the run with its final state, written paths and
     evaluation."""
     def after(st: LoopState) -> None:
-        if len(st.metrics) == 1 and dr.setup.objective == "active" and not coarse_levels(dr.problem):
+        if len(st.metrics) == 1 and dr.setup.case.objective == "active" and not coarse_levels(dr.problem):
             check_control(dr, st)  # coarse-to-fine: at the coarsest level (start_from_coarse)
         if progress is not None:
             progress(st)
@@ -186,7 +188,7 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
     dr = dataclasses.replace(dr, state=st)
     if not final:
         return dr
-    p = dr.setup.params
+    p = dr.setup.beso.params
     if evaluate:
         selection, evaluation, paths = evaluate_final(dr, evaluator=evaluator, path_frames=path_frames)
         k = selection.iteration
@@ -199,7 +201,7 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
 
 def start_from_coarse(dr: DesignRun, after: Callable[[LoopState], None],
                       cancelled: Callable[[], bool] | None = None) -> DesignRun:
-    """Coarse-to-fine (:mod:`kgarment.design.refine`): the coarse levels in their own run
+    """Coarse-to-fine (:mod:`kgarment.optimize.refine`): the coarse levels in their own run
     folders (``RUN/level<L>``, resumed where they stopped), then this run's iteration 0 and
     the coarse run's state transferred to this level; checkpointed.  The control screen
     (:func:`check_control`) runs once, after the coarsest level's iteration 0, into this
@@ -210,13 +212,13 @@ def start_from_coarse(dr: DesignRun, after: Callable[[LoopState], None],
     iteration at subdivision 2 (benchmarks/README.md)."""
     if not (dr.run / "checkpoint.npz").is_file():
         save_checkpoint(dr.run, dr.state)  # resumable while the coarse levels run
-    device = dr.setup.solver.device
+    device = dr.setup.case.solver.device
 
     def open_level(problem: Problem, folder: Path, resume: bool) -> DesignRun:
         return open_run(problem, folder, resume=resume, force=not resume, device=device, body=dr.body)
 
     def first(level_run: DesignRun, st: LoopState) -> None:
-        if level_run.setup.objective == "active":
+        if level_run.setup.case.objective == "active":
             check_control(level_run, st, folder=dr.run)
 
     coarse_setup, coarse = run_coarse(dr.run, dr.problem, open_level, cancelled=cancelled, first=first)
@@ -229,10 +231,10 @@ def start_from_coarse(dr: DesignRun, after: Callable[[LoopState], None],
 
 def check_control(dr: DesignRun, st: LoopState, folder: Path | None = None) -> list[Control]:
     """After iteration 0: which motions the clutches can control at all
-    (:mod:`kgarment.design.control`), written to ``control.json`` in ``folder`` (default:
+    (:mod:`kgarment.evaluate.control`), written to ``control.json`` in ``folder`` (default:
     the run's; each row with the garment's subdivision level it was solved at); a warning
     with what to change for each one they cannot."""
-    controls = control_check(dr.setup, st.warm)
+    controls = control_check(dr.setup.case, st.warm)
     if controls:
         level = dr.problem.garment.subdivision
         atomic_write_text((folder or dr.run) / "control.json",
@@ -256,12 +258,12 @@ def evaluate_final(dr: DesignRun, evaluator: Evaluator | None = None,
     path_frames``; the motion's end a start; its force over the motion under ``path`` in the
     JSON), and with ``path_frames`` like ``--path path_frames`` (the candidates too).  Returns (how the iteration was chosen,
     its evaluation, the files written)."""
-    ev = evaluator or Evaluator(setup_from_problem(dr.problem, dr.body, dr.garment, dr.strips, "evaluate",
-                                                   dr.setup.solver.device),
+    ev = evaluator or Evaluator(case_from_problem(dr.problem, dr.body, dr.garment, dr.strips,
+                                                  device=dr.setup.case.solver.device),
                                 run_store(dr.run))  # kgarment evaluate / plan RUN take them from there
     paths_of: dict[int, object] = {}
     # a run that designs against the motion is judged by it: --path's numbers
-    frames = path_frames or (dr.problem.solver.path_frames if dr.setup.path_start else 0)
+    frames = path_frames or (dr.problem.solver.path_frames if dr.setup.beso.path_start else 0)
 
     def candidate(k: int) -> DesignEvaluation:
         design = design_values(dr.state.designs[k])
@@ -270,7 +272,7 @@ def evaluate_final(dr: DesignRun, evaluator: Evaluator | None = None,
             path = paths_of[k] = path_forces(ev, design, dr.problem, frames=frames)
         return ev.evaluate(design, loads=False, known=None if path is None else path.ends)
 
-    p = dr.setup.params
+    p = dr.setup.beso.params
     chosen = select_reported(dr.state.metrics, p.target_area, p.er, dr.setup, candidate)
     k, path = chosen.iteration, paths_of.get(chosen.iteration)
     res = ev.with_loads(chosen.evaluation, design_values(dr.state.designs[k]))

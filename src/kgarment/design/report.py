@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kgarment.design.beso import design_values
+from kgarment.case.values import design_values
 from kgarment.design.run import progress_plot
 from kgarment.io import atomic_save_npz, atomic_write_bytes, atomic_write_text, write_ply
 from kgarment.render import faces_near, render_design, render_scene
@@ -54,18 +54,18 @@ def finish_run(run: Path, setup, st, body, garment, strips, iteration: int, equi
                                title=f"{garment.name}: final design (iteration {iteration})"))
     # the motions the body is posed in (and a multi-body design's wearers): not the
     # beginnings of motions that [design] early adds to the objective
-    keyed = [(k, s) for k, s in setup.states() if k[0] in setup.wearers or k[0] in body.motion_names]
+    keyed = [(k, s) for k, s in setup.case.states() if k[0] in setup.case.wearers or k[0] in body.motion_names]
     if equilibria is None or any(k not in equilibria for k, _ in keyed):
         states = [s for _, s in keyed]
-        solved = setup.solve(design, states, warm_start=[st.warm.get(s.name) for s in states])
+        solved = setup.case.solve(design, states, warm_start=[st.warm.get(s.name) for s in states])
         equilibria = {k: r for (k, _), r in zip(keyed, solved)}
     vmax = {}
     for (motion, _), r in equilibria.items():
         vmax[motion] = max(vmax.get(motion, 0.0), float(np.percentile(r.garment_density, 99)))
     for key, s in keyed:
         r = equilibria[key]
-        w = setup.wearers.get(key[0])  # a multi-body design's: this motion's body and garment
-        on, pose, model = (body, key[0], setup.model) if w is None else (w.body, w.motion, w.model)
+        w = setup.case.wearers.get(key[0])  # a multi-body design's: this motion's body and garment
+        on, pose, model = (body, key[0], setup.case.model) if w is None else (w.body, w.motion, w.model)
         gx, cx = model.split(r.x)
         bv = on.vertices(pose)
         paths.append(render_scene(final / f"energy_{key[0]}_{key[1].replace(':', '-')}.png", bv,

@@ -25,8 +25,8 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from kgarment.design.objective import combined_objective, objective_terms
 from kgarment.design.run import ranked_iterations
+from kgarment.optimize.objective import combined_objective, objective_terms
 
 log = logging.getLogger(__name__)
 
@@ -54,8 +54,8 @@ def evaluated_objective(setup, res) -> float:
     energy = {(s.motion, s.state): s.energy for s in res.states}
     reference = {(s.motion, s.state): s.energy_full for s in res.states}
     motions = list(dict.fromkeys(s.motion for s in res.states))
-    terms = objective_terms(setup.objective, energy, reference, motions, setup.lockout, 0.0)
-    return float(combined_objective(setup.combine, terms))
+    terms = objective_terms(setup.case.objective, energy, reference, motions, setup.case.lockout, 0.0)
+    return float(combined_objective(setup.beso.combine, terms))
 
 
 @dataclass(frozen=True)

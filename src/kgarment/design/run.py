@@ -22,12 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.case.values import design_values
 from kgarment.constants import SIM_MODEL, X_MIN, target_reached
-from kgarment.design.beso import design_values
-from kgarment.design.loop import LoopState
-from kgarment.design.metrics import Stored
 from kgarment.errors import KgarmentError
+from kgarment.evaluate.metrics import Stored
 from kgarment.io import atomic_save_npz, atomic_write_text, check_replaceable, load_npz
+from kgarment.optimize.loop import LoopState
 
 
 @dataclass(frozen=True)
@@ -109,7 +109,7 @@ def best_iteration(rows, target: float, er: float) -> int:
     at the target area whose states all converged; the last one if none.  BESO's objective
     is not monotone once the target is reached (where a state has several equilibria the
     design can flip between them), and the paper samples designs along a run likewise.  A
-    step the guard took back (:mod:`kgarment.design.guard`) is never reported.  With ``[solver]
+    step the guard took back (:mod:`kgarment.optimize.guard`) is never reported.  With ``[solver]
     path_start`` only the iterations whose ON states were also solved over the motion from
     rest count (``path_checked``): the others' objectives may be of an equilibrium the wearer
     never reaches (measured on the two-motion sleeve at subdivision 1: the best objective at

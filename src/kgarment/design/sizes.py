@@ -1,6 +1,6 @@
 """One design for a size range against one design per size: ``kgarment sizes``.
 
-For a multi-body problem (``[body] phenotypes``, :mod:`kgarment.design.wearers`) this runs
+For a multi-body problem (``[body] phenotypes``, :mod:`kgarment.case.wearers`) this runs
 the shared design (``OUT/runs/all``) and, for every wearer, the same problem on that body
 alone (``OUT/runs/<wearer>``): ordinary run folders, resumed where they stopped and
 reused when finished.  It then compares, per wearer and motion, what the shared design
@@ -17,9 +17,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from kgarment.case.wearers import split_key, wearer_key, wearer_problem
 from kgarment.design.driver import finish, open_run
 from kgarment.design.run import run_status
-from kgarment.design.wearers import split_key, wearer_key, wearer_problem
 from kgarment.errors import KgarmentError
 from kgarment.io import atomic_write_text, check_kind, json_text, make_folder, read_json_object
 from kgarment.problem import Problem, load_problem

@@ -2,7 +2,7 @@
 
 Clutches are numbered C1, C2, ... in the problem's order. Each clutch end that lies on a
 piece is labelled beside its three button circles ("C1 elbow.R start"); a clutch that
-carries no load in the design's evaluation (:mod:`kgarment.design.loads`: its share of the
+carries no load in the design's evaluation (:mod:`kgarment.evaluate.loads`: its share of the
 ON - OFF energy below :data:`kgarment.constants.LOADED_SHARE` in every motion) is labelled
 "no load" there and in the legend; without an evaluation the legend says "not evaluated".
 The legend lists every clutch, also those whose ends sit on the base garment (no piece).

@@ -283,7 +283,7 @@ def layout_sheet(patterns: PatternSet, garment, strips, sheet_width: float = 600
     """Pack every patch onto a sheet at most ``sheet_width`` mm wide (wider only where one patch
     is), shelf by shelf, tallest first, after the reference square and the legend; the sheet
     is cropped to what it holds. allowance : seam allowance, mm; loads : the design's
-    ``kgarment.design.loads.LoadReport`` (clutches that carry no load are flagged), or None
+    ``kgarment.evaluate.loads.LoadReport`` (clutches that carry no load are flagged), or None
     (not evaluated)."""
     pieces = [place_piece(p, garment, strips, patterns.seams, smooth_iterations, allowance) for p in patterns.patches]
     notes = clutch_notes(strips, pieces, loads)

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.case.values import design_values
 from kgarment.clutch import ClutchStrip
-from kgarment.design.beso import design_values
 from kgarment.errors import KgarmentError
 from kgarment.fabricate.bom import write_bom, write_report
 from kgarment.fabricate.cleanup import CleanupOptions, CleanupResult, clean_design

@@ -254,7 +254,7 @@ def _motions(m: dict, body: BodySpec) -> tuple[tuple[Motion, ...], tuple[str, ..
 def _activation(a, motions: tuple[str, ...]) -> tuple[tuple[str, tuple[tuple[str, float], ...]], ...]:
     """[motions.activation]: per motion of ``use``, the clutches switched on: a list of names
     (each fully on) or a table {name = value in [0, 1]}.  Clutch names are checked when the
-    clutches are built (:func:`kgarment.design.setup.activation_vectors`)."""
+    clutches are built (:func:`kgarment.case.setup.activation_vectors`)."""
     if not isinstance(a, dict):
         raise KgarmentError("[motions.activation] must be a table: MOTION = [\"clutch\", ...] or "
                             "MOTION = {clutch = value}")
@@ -479,7 +479,7 @@ def override(problem: Problem, *, motions=None, template: str | None = None, sub
         beso = {**asdict(problem.design.beso), "max_iterations": max_iterations}
         beso = section(BesoParams, "design", beso, {"filter": FILTERS}, C.DESIGN_RANGES)
         changes["design"] = dataclasses.replace(problem.design, beso=beso)
-    if refine:  # coarse-to-fine from level 0 (kgarment.design.refine)
+    if refine:  # coarse-to-fine from level 0 (kgarment.optimize.refine)
         if problem.body.phenotypes:
             raise KgarmentError("--refine: coarse-to-fine is for one body, not a multi-body design ([body] phenotypes)")
         d = changes.get("design", problem.design)

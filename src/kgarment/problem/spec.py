@@ -127,11 +127,11 @@ class BesoParams:
         ``tol`` (relative) over ``window`` iterations.
     max_iterations : hard stop.
     connected : repair every update into one part holding every clutch end
-    (:mod:`kgarment.design.connect`); False is the paper's plain BESO.
+    (:mod:`kgarment.optimize.connect`); False is the paper's plain BESO.
     settle : once the target area is reached, the faces that may be added per iteration
     halve every ``settle`` iterations at the target (``ar_max`` 2^(-k / settle) after k),
     so that the exchange cools down and the run settles (0: off, the paper's BESO;
-    :func:`kgarment.design.beso.settled_ar`).
+    :func:`kgarment.optimize.beso.settled_ar`).
 
     The material interpolation (``p``, ``x_min``) is the simulator's
     (:data:`kgarment.constants.PENALTY`, :data:`kgarment.constants.X_MIN`).
@@ -166,19 +166,19 @@ class DesignSpec:
     protect_attachments : keep the attachment rings reinforced;
     protect_clutch_margin : metres around clutch anchors kept reinforced (0: off);
     lockout : weight of the penalty on the energy that other motions' activation sets
-    store in a motion (0: none; :mod:`kgarment.design.objective`);
+    store in a motion (0: none; :mod:`kgarment.optimize.objective`);
     balance : weight of the reward for every clutch of a motion's set carrying load on its
-    own (``solo:`` states; 0: none; :mod:`kgarment.design.objective`), every motion the
+    own (``solo:`` states; 0: none; :mod:`kgarment.optimize.objective`), every motion the
     same, or ((motion, weight), ...) for the motions named only (a table in the file: the
     solo states cost one solve per clutch and motion, so a five-motion garment can reward
     its clutches in the one motion each should carry);
     levels : coarser subdivision levels to design at first, increasing, each below the
-    garment's (coarse-to-fine, :mod:`kgarment.design.refine`); () designs at the garment's
+    garment's (coarse-to-fine, :mod:`kgarment.optimize.refine`); () designs at the garment's
     level throughout;  guard : a BESO step after which some motion's objective term falls
-    by more than this share is taken back (0: off; :mod:`kgarment.design.guard`);
+    by more than this share is taken back (0: off; :mod:`kgarment.optimize.guard`);
     combine : how the motions' terms make the objective: "sum" (the paper's) or
     "product" (each motion's sensitivities weighted by the inverse of its term, so that no
-    motion is given up for the others; :mod:`kgarment.design.objective`);  early :
+    motion is given up for the others; :mod:`kgarment.optimize.objective`);  early :
     ((motion, t), ...) motions also designed for at the share t in (0, 1) of their
     movement (the body posed part of the way; one more motion ``MOTION@t`` of the design
     objective, ON with the motion's clutch set and OFF; design runs only, evaluations stay
@@ -186,7 +186,7 @@ class DesignSpec:
     clutches before the end can find another equilibrium (README, "Design runs");
     weights : ((motion, w), ...) each named motion's weight in the objective, w > 0 (a
     motion not named: 1; its early poses share it): a designer's priorities where the
-    paper counts every motion equally (:mod:`kgarment.design.objective`).
+    paper counts every motion equally (:mod:`kgarment.optimize.objective`).
     """
 
     objective: str = "active"
@@ -272,7 +272,7 @@ class SolverSpec:
     max_iter : Newton iterations per state.
     skin_start : every design iteration also solves each state from the evaluator's two
     starts (the skin-tight garment and the fully reinforced garment's equilibrium) and keeps
-    the lowest-energy equilibrium (the evaluator's rule, :mod:`kgarment.design.evaluate`), so
+    the lowest-energy equilibrium (the evaluator's rule, :mod:`kgarment.evaluate.evaluator`), so
     that the run optimises the state the evaluation reports; triples the solves.  For
     clutches that a frictionless limb lets slide off the stretched side (the arm-flexion
     sleeve: along the warm-started path the clutch stays over the outer elbow at 40-300% more
@@ -281,7 +281,7 @@ class SolverSpec:
     over its motion from rest as the evaluator does (``evaluate --path``: the design's rest
     equilibrium, ``PATH_FRAMES`` frames each from the ones before, friction holding each
     where the one before left it, at the evaluator's tolerance;
-    ``kgarment.design.motion_start.motion_ends``): the state a wearer reaches, which neither
+    ``kgarment.optimize.motion_start.motion_ends``): the state a wearer reaches, which neither
     the warm-started path through the designs nor the two starts need find.  With
     ``skin_start`` the state becomes the evaluator's (the lower of its two starts and that
     end), without it the end is kept where lower by more than 1%; the later iterations start

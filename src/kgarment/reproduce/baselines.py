@@ -36,8 +36,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 
 from kgarment.constants import X_MIN
-from kgarment.design.beso import one_ring_filter
 from kgarment.garment.topology import face_adjacency, triangle_areas
+from kgarment.optimize.beso import one_ring_filter
 
 
 def _take_budget(order_key: np.ndarray, areas: np.ndarray, budget: float, x_min: float) -> np.ndarray:

@@ -22,7 +22,7 @@ class Resolution:
     """subdivision : garment level (None: the example's); er : BESO's evolution ratio (None:
     the example's); max_iterations : cap (None: the example's); window : convergence
     window; seeds : random baseline designs;  path_frames : frames of the force over the
-    motion (ours, manual, full; :mod:`kgarment.design.path`);  ar_max : the share of faces
+    motion (ours, manual, full; :mod:`kgarment.evaluate.path`);  ar_max : the share of faces
     added per iteration (None: ``er`` where it is given, else the example's)."""
 
     name: str

@@ -7,7 +7,7 @@ problem's objective.  Results are cached in a JSON file keyed by the experiment,
 the built problem (its fields and its clutches as laid) and a hash of the design, so an
 interrupted ``reproduce`` picks up where it stopped and a changed problem is not served
 stale numbers.  Below that, every solve the evaluations make is kept in the reproduction
-folder's ``runs/equilibria/`` (:mod:`kgarment.design.store`): an evaluation or a force over
+folder's ``runs/equilibria/`` (:mod:`kgarment.case.store`): an evaluation or a force over
 the motion interrupted half way (the long sleeve's paths take an hour or more at the
 default resolution) goes on from the solves it had done, reading them back to the last digit.
 """
@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.case.store import FOLDER, EquilibriumStore
 from kgarment.constants import SIM_MODEL
-from kgarment.design import Evaluator
-from kgarment.design.store import FOLDER, EquilibriumStore
+from kgarment.evaluate import Evaluator
 from kgarment.io import atomic_write_text
 from kgarment.problem import Problem, build_body, build_clutches, build_garment, problem_to_dict
 
@@ -68,7 +68,7 @@ class CachedEvaluator:
     problem : Problem (its objective and its balance are ignored: states are ON and OFF, and
     with a lockout the lock states);  name : the key of
     this problem in the cache;  cache : EvaluationCache or None.  ``body``, ``garment``,
-    ``strips`` and ``setup`` are the built problem (for renders and baselines).
+    ``strips`` and ``case`` are the built problem (for renders and baselines).
     """
 
     def __init__(self, problem: Problem, name: str, cache: EvaluationCache | None = None, device: str = "cpu"):
@@ -83,7 +83,7 @@ class CachedEvaluator:
         store = None if cache is None else EquilibriumStore(cache.path.parent / "runs" / FOLDER)
         self.evaluator = Evaluator.from_problem(problem, body=self.body, garment=self.garment, strips=self.strips,
                                                 device=device, objective="active", store=store)
-        self.setup = self.evaluator.setup
+        self.case = self.evaluator.case
         self._paths: dict = {}  # (design key, frames) -> PathReport (:meth:`_path_report`)
 
     @property
@@ -92,7 +92,7 @@ class CachedEvaluator:
 
     @property
     def n_states(self) -> int:
-        return len(self.setup.states())
+        return len(self.case.states())
 
     def evaluate(self, design: np.ndarray, label: str = "", loads: bool = False) -> dict:
         """rho ON/OFF per motion and the structural metrics of ``design`` (m,) (and with
@@ -130,12 +130,12 @@ class CachedEvaluator:
 
     def _with_rest(self, design: np.ndarray, key: str, doc: dict) -> dict:
         """A cached path JSON ``doc`` made before paths had their rest frame (t = 0), or
-        had it from fewer starts (``rest_starts`` below :data:`~kgarment.design.path.REST_STARTS`): the
-        rest frames solved now (:func:`kgarment.design.path.rest_frames`, the first frame
+        had it from fewer starts (``rest_starts`` below :data:`~kgarment.evaluate.path.REST_STARTS`): the
+        rest frames solved now (:func:`kgarment.evaluate.path.rest_frames`, the first frame
         solved again for its backward start: seconds) and added, the summary's work taken
         from them, and stored under ``key`` again; the frames of the motion (minutes) stay
         those cached."""
-        from kgarment.design.path import REST_STARTS, PathReport, rest_frames
+        from kgarment.evaluate.path import REST_STARTS, PathReport, rest_frames
 
         if doc.get("rest_starts") == REST_STARTS:
             return doc
@@ -152,10 +152,10 @@ class CachedEvaluator:
         return f"{self.name}|{design_key(design)}|path{frames}|v2"  # v2: the end anchored at the target's equilibrium
 
     def _path_report(self, design: np.ndarray, frames: int, label: str = ""):
-        """:func:`kgarment.design.path.path_forces` of ``design`` (m,) (``label``: its name in
+        """:func:`kgarment.evaluate.path.path_forces` of ``design`` (m,) (``label``: its name in
         the progress lines), kept for this object's life (its ends serve the evaluation and
         the control table of the same design)."""
-        from kgarment.design.path import path_forces
+        from kgarment.evaluate.path import path_forces
 
         k = (design_key(design), frames)
         if k not in self._paths:  # minutes at the default resolution: each frame logged, with its ETA
@@ -165,11 +165,11 @@ class CachedEvaluator:
         return self._paths[k]
 
     def plan(self, design: np.ndarray, frames: int = 0) -> dict:
-        """The control table of ``design`` (m,) (:func:`kgarment.design.plan.make_plan`: every
+        """The control table of ``design`` (m,) (:func:`kgarment.evaluate.plan.make_plan`: every
         clutch set in every motion) as JSON, cached like the evaluations; with ``frames`` the
         motion from rest in that many frames first, its ends competing with the two starts
         (``make_plan``'s ``known``) as in :meth:`evaluate_with_path`."""
-        from kgarment.design.plan import make_plan
+        from kgarment.evaluate.plan import make_plan
 
         design = np.asarray(design, dtype=np.float64)
         key = f"{self.name}|{design_key(design)}|plan" + (f"|path{frames}" if frames else "")
@@ -183,7 +183,7 @@ class CachedEvaluator:
 
     def path(self, design: np.ndarray, frames: int, label: str = "") -> dict:
         """The force over the motion of ``design`` (m,) in ``frames`` frames, ON and OFF
-        (:func:`kgarment.design.path.path_forces`) as JSON, cached like the evaluations
+        (:func:`kgarment.evaluate.path.path_forces`) as JSON, cached like the evaluations
         (``label``: the design's name in the progress lines)."""
         design = np.asarray(design, dtype=np.float64)
         key = self._path_key(design, frames)

@@ -28,10 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-from kgarment.design import design_values, finish, load_design_history, open_run, run_status
-from kgarment.design.beso import expected_iterations
+from kgarment.case.values import design_values
+from kgarment.design import finish, load_design_history, open_run, run_status
 from kgarment.design.run import best_iteration, final_iteration
 from kgarment.errors import KgarmentError
+from kgarment.optimize.beso import expected_iterations
 from kgarment.problem import Problem, example_path, load_problem, override
 from kgarment.reproduce.catalog import (
     BY_NAME,

@@ -84,7 +84,7 @@ PATH_COLORS = {"ours": "#1f3b73", "manual": "#d98c1f", "full": "#555555"}
 
 
 def force_curves(path_doc: dict, motion: str, state: str) -> tuple[list[float], list[float]]:
-    """(t, force) of one design's path JSON (:meth:`kgarment.design.path.PathReport.to_json`)
+    """(t, force) of one design's path JSON (:meth:`kgarment.evaluate.path.PathReport.to_json`)
     in ``motion`` and ``state``: per frame the largest clutch tension (N), the rest pose
     first (its frame, or (0, 0) in a JSON made before paths had one)."""
     frames = sorted((f for f in path_doc["frames"] if f["motion"] == motion and f["state"] == state),
@@ -97,8 +97,8 @@ def force_curves(path_doc: dict, motion: str, state: str) -> tuple[list[float], 
 def force_stats(path_doc: dict, motion: str) -> dict:
     """Peak (over the frames) and mean (over the frames after rest) of the largest clutch
     tension ON and OFF (N), and the work against the garment over the motion ON and OFF (J:
-    its energy at the target less at rest, :meth:`kgarment.design.path.PathReport.summary`)."""
-    from kgarment.design.path import work_from_rest
+    its energy at the target less at rest, :meth:`kgarment.evaluate.path.PathReport.summary`)."""
+    from kgarment.evaluate.path import work_from_rest
 
     out = {}
     for s in ("on", "off"):

@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.case.values import design_values
 from kgarment.constants import SIM_MODEL
-from kgarment.design import design_values
 from kgarment.design.run import other_model
 from kgarment.errors import KgarmentError
 from kgarment.io import atomic_write_text, json_text, make_folder, time_left
@@ -171,7 +171,7 @@ def run_experiment(exp: Experiment, res, out: Path, cache: EvaluationCache, devi
 def _manual(ev: CachedEvaluator, budget: float) -> np.ndarray:
     """(m,) the manual baseline (:func:`~kgarment.reproduce.baselines.manual_design`) of ``ev``'s problem."""
     g = ev.garment
-    return manual_design(g.rest_vertices, g.faces, ev.setup.end_faces, *anchor_rings(g, ev.body), budget)
+    return manual_design(g.rest_vertices, g.faces, ev.case.end_faces, *anchor_rings(g, ev.body), budget)
 
 
 def _force_image(out: Path, name: str, paths: dict) -> str:

@@ -2,7 +2,7 @@
 a sentence with the numbers behind it.
 
 ``every_clutch_loaded``  in every design of ours, every clutch is loaded in at least one of
-                         its motions (share or needed >= 0.10, :mod:`kgarment.design.loads`)
+                         its motions (share or needed >= 0.10, :mod:`kgarment.evaluate.loads`)
 ``clutch_ends_supported`` every clutch end on reinforcement, in every design of ours
 ``one_part``             one part, counting clutches as links, in every design of ours
 ``single_on_off``        every single-motion design rho ON > 1 and rho OFF < 1

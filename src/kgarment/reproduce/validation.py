@@ -24,7 +24,7 @@ SENSOR = {"shirt_three_motions": {"arms_forward": "upper_back", "arms_raise": "l
 
 def peak_tension(path_doc: dict, motion: str, clutch: str | None) -> float:
     """The largest tension (N) over the motion, ON, of ``clutch`` (None: of any clutch), from
-    the path's per-clutch summary (:meth:`kgarment.design.path.PathReport.summary`)."""
+    the path's per-clutch summary (:meth:`kgarment.evaluate.path.PathReport.summary`)."""
     return max((r["peak_on_N"] for r in path_doc["summary"] if r["motion"] == motion and clutch in (None, r["clutch"])),
                default=0.0)
 

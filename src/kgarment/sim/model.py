@@ -323,7 +323,7 @@ class SimState:
     and the clutches' (m), or None: the skin-tight garment, as if it had followed the skin
     without slipping from the start.  A frame of a motion anchors where the frame before
     left the garment (:func:`kgarment.sim.held_after`, carried with the skin by
-    :func:`kgarment.design.path.carried`): what slid stays slid, as Coulomb friction keeps no
+    :func:`kgarment.evaluate.path.carried`): what slid stays slid, as Coulomb friction keeps no
     memory of where the garment started.
     """
 

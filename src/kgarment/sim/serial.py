@@ -85,7 +85,7 @@ def held_after(model: SimModel, design: np.ndarray, state: SimState, x: np.ndarr
     (``sim.friction.slid_anchor`` from the state's own anchor, with the contact normals and
     strip directions lagged at ``x``): the anchor of what comes next in the same pose, (N, 3)
     m; the model must have friction.  A motion's next frame carries it with the skin
-    (:func:`kgarment.design.path.carried`)."""
+    (:func:`kgarment.evaluate.path.carried`)."""
     from kgarment.sim.friction import slid_anchor
 
     prob = prepare_state(model, design, state, options)

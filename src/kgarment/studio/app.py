@@ -34,7 +34,14 @@ from kgarment.studio.edit import Editor
 from kgarment.studio.optimise import Optimiser
 from kgarment.studio.panel import Panel
 from kgarment.studio.scene import Scene, garment_colors, garment_target
-from kgarment.studio.session import Opened, build_state, export_design, read_source, save_session, studio_path
+from kgarment.studio.session import (
+    Opened,
+    build_state,
+    export_design,
+    read_source,
+    save_session,
+    studio_path,
+)
 from kgarment.studio.settings import Settings
 from kgarment.studio.simulations import Simulations
 from kgarment.studio.state import StudioState

@@ -1,5 +1,5 @@
 """The force over the motion in the page: a picture and a table of a
-:class:`kgarment.design.path.PathReport` (what ``kgarment evaluate RUN --path K`` writes)."""
+:class:`kgarment.evaluate.path.PathReport` (what ``kgarment evaluate RUN --path K`` writes)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from kgarment.design.path import PathReport
-from kgarment.design.path_plot import draw_tensions
+from kgarment.evaluate.path import PathReport
+from kgarment.evaluate.path_plot import draw_tensions
 
 
 def force_image(report: PathReport, width_px: int = 420, row_px: int = 190) -> np.ndarray:

@@ -24,9 +24,10 @@ import numpy as np
 
 from kgarment.body import Body
 from kgarment.clutch import ClutchSpec
-from kgarment.design import DesignRun, LoopState, finish, open_run
+from kgarment.design import DesignRun, finish, open_run
 from kgarment.errors import KgarmentError
 from kgarment.garment import Garment
+from kgarment.optimize import LoopState
 from kgarment.problem import Problem, override
 from kgarment.studio.jobs import Job
 from kgarment.studio.page import Page

@@ -11,8 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from kgarment.design import DesignEvaluation
-from kgarment.design.setup import StateKey
+from kgarment.case.states import StateKey
+from kgarment.evaluate import DesignEvaluation
 from kgarment.sim import SimModel
 
 
@@ -26,7 +26,7 @@ class SimResult:
     (n, 3) equilibrium positions, m};  density : {(motion, state): (m,) energy density,
     J/m^2};  clutch_x : {(motion, state): [(nc, 3) positions of each clutch, m]};  loads :
     per (motion, clutch) the share of the ON - OFF energy, tension N and loaded flag
-    (:mod:`kgarment.design.loads`; empty without clutches).
+    (:mod:`kgarment.evaluate.loads`; empty without clutches).
     """
 
     label: str

@@ -19,8 +19,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
-from kgarment.design import LoopState, load_design_history
+from kgarment.design import load_design_history
 from kgarment.errors import KgarmentError
+from kgarment.optimize import LoopState
 from kgarment.problem import BodySpec, GarmentSpec, Problem, load_problem
 
 

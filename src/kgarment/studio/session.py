@@ -31,8 +31,9 @@ import numpy as np
 import tomli_w
 
 from kgarment.body import Body
+from kgarment.case.values import design_values
 from kgarment.clutch import save_clutches
-from kgarment.design import design_values, load_design_history
+from kgarment.design import load_design_history
 from kgarment.design.run import final_iteration
 from kgarment.errors import KgarmentError
 from kgarment.garment import Garment

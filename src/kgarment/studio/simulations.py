@@ -23,10 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from kgarment.body import Body
+from kgarment.case.values import design_values
 from kgarment.clutch import ClutchSpec, ClutchStrip
-from kgarment.design import Evaluator, design_values, load_design
-from kgarment.design.path import PATH_FRAMES, PathReport, path_forces
+from kgarment.design import load_design
 from kgarment.errors import Cancelled, KgarmentError
+from kgarment.evaluate import Evaluator
+from kgarment.evaluate.path import PATH_FRAMES, PathReport, path_forces
 from kgarment.garment import Garment
 from kgarment.problem import Problem
 from kgarment.studio.forces import force_table
@@ -85,7 +87,7 @@ def simulate_design(evaluator: Evaluator, design: np.ndarray, motions: Sequence[
     ev = evaluator.evaluate(design_values(design), list(motions), loads=True,
                             report=None if report is None else (lambda text: report(f"{label}: {text}")),
                             cancelled=cancelled if cancelled is not None else (lambda: False))
-    return SimResult.of(label, revision, ev, evaluator.setup.model)
+    return SimResult.of(label, revision, ev, evaluator.case.model)
 
 
 class Simulations:

@@ -280,7 +280,7 @@ def _index(node: list, part: str, here: str, where: str) -> int:
 
 def _validate(data: dict, base_dir: Path, source, where: str) -> Problem:
     """The parsed problem, its [motions.activation] clutch names checked too (a run would refuse them)."""
-    from kgarment.design.setup import activation_vectors
+    from kgarment.case.setup import activation_vectors
     from kgarment.problem.build import clutch_names
 
     try:

@@ -9,7 +9,7 @@ path.  Measured on the two-motion sleeve (subdivision 0, 3% steps): flexion rho 
 iteration 33, 0.06 at 34, 1.10 at 35, 0.12 at 36, and below 0.5 for the rest of the run.
 
 With ``[design] guard = g`` (0 < g < 1) a step after which some motion's term of the
-objective (:func:`kgarment.design.objective.objective_terms`) is below (1 - g) times the
+objective (:func:`kgarment.optimize.objective.objective_terms`) is below (1 - g) times the
 last accepted iteration's is *rejected*: the iteration is recorded (its metrics, flagged
 ``rejected``), but the next design is made again from the last accepted design, its
 sensitivities and warm starts, towards the same target area, with the half of the faces

@@ -1,11 +1,11 @@
 """Equilibria kept on disk: a run folder's ``equilibria/``, read back by later evaluations.
 
 A design run ends with the evaluation of its final design (the one design evaluator,
-:mod:`kgarment.design.evaluate`): every state from two starts, the fully reinforced
+:mod:`kgarment.evaluate.evaluator`): every state from two starts, the fully reinforced
 garment's states, one state per clutch and motion for the loads.  ``kgarment evaluate RUN``
 (with or without ``--path``) and ``kgarment plan RUN`` then need the same equilibria again,
 in another process.  The evaluator's solves go through the run's store
-(:meth:`kgarment.design.setup.DesignSetup.solve`): a solve done before -- the same state
+(:meth:`kgarment.case.Case.solve`): a solve done before -- the same state
 from the same start -- is read back instead of solved again, so a later command gives
 the same numbers to the last digit without the work, whatever it builds from them (the
 two starts, the fully reinforced references, the load states, the frames of the force over
@@ -60,7 +60,7 @@ log = logging.getLogger(__name__)
 FOLDER = "equilibria"  # the store's folder in a run folder
 # the sources whose change can change what a solve returns (a key names all its inputs, so
 # the evaluation's own logic -- which solves it asks for -- is not among them)
-CODE = ("sim", "design/setup.py", "design/store.py", "constants.py")
+CODE = ("sim", "case/setup.py", "case/store.py", "constants.py")
 SHARED = "equilibria"  # the shared store's folder in kgarment's cache (shared_store)
 SHARED_VERSIONS = 4  # code versions whose folders the shared store keeps (the most recently used)
 DIGESTS_KEPT = 64  # remembered digests beyond which those of objects that are gone are forgotten
@@ -198,16 +198,16 @@ class EquilibriumStore:
         self.unwritable = False  # a write failed: reported once, no more tried
         self._digests: dict[int, tuple[weakref.ref, str]] = {}  # id -> (a reference to the object, its digest)
 
-    def solve(self, setup, design: np.ndarray, states: list, warm_start, options,
+    def solve(self, case, design: np.ndarray, states: list, warm_start, options,
               also: EquilibriumStore | None = None) -> list[StateResult]:
-        """``setup.solve_now`` of the states not in the store, the others read back (under
+        """``case.solve_now`` of the states not in the store, the others read back (under
         the states' own names); the new ones are kept.  ``also``: a second store (the
         shared one) looked in for what this one lacks; what it has is copied here, what is
         solved is kept in both."""
         warm = list(warm_start) if warm_start is not None else [None] * len(states)
         opts = content_digest(dataclasses.replace(options, workers=0))
         d = design_digest(design)
-        keys = [(opts, self._digest(setup.model_of(s.motion.name)), d, state_digest(s),
+        keys = [(opts, self._digest(case.model_of(s.motion.name)), d, state_digest(s),
                  self._digest(s.motion.body.normals),  # the body's key covers its vertices only
                  "skin-tight" if w is None else content_digest(np.asarray(w, dtype=np.float64)))
                 for s, w in zip(states, warm)]
@@ -223,7 +223,7 @@ class EquilibriumStore:
                 out[i] = dataclasses.replace(got, name=states[i].name)
         todo = [i for i, r in enumerate(out) if r is None]
         if todo:
-            solved = setup.solve_now(design, [states[i] for i in todo], [warm[i] for i in todo], options)
+            solved = case.solve_now(design, [states[i] for i in todo], [warm[i] for i in todo], options)
             for i, r in zip(todo, solved):
                 out[i] = r
                 self.put(keys[i], r)

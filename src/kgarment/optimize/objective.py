@@ -10,7 +10,7 @@
                With ``[design] balance = w`` (sets of two clutches or more), each motion also
                rewards every clutch of its set that carries little on its own (``solo:``
                states, that clutch alone ON): with G = E_ON - E_OFF, G_c = E_solo:c - E_OFF
-               and the share s_c = G_c / G (``kgarment.design.loads``), the gain becomes
+               and the share s_c = G_c / G (``kgarment.evaluate.loads``), the gain becomes
                G + w sum_c h(G_c), h' = clip(1 - s_c / BALANCE_SHARE, 0, 1) (G held at the
                iteration's value): a clutch below the share BALANCE_SHARE is pushed towards
                it, one above it is left alone (the strongest clutch is not counted twice).
@@ -49,23 +49,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from kgarment.case.states import states_needed
 from kgarment.errors import unknown
 from kgarment.problem.spec import COMBINE_NAMES, balance_weight
-from kgarment.problem.spec import OBJECTIVE_NAMES as OBJECTIVES
+from kgarment.problem.spec import OBJECTIVE_NAMES as OBJECTIVES  # noqa: F401 (re-exported)
 
 BALANCE_SHARE = 0.25  # the balance term pushes a clutch's share up to this (loaded: 0.10)
 PRODUCT_FLOOR = 0.02  # combine = "product": a motion's term counts as at least this (weights <= 1 / floor)
-
-
-def states_needed(kind: str) -> tuple[str, ...]:
-    """Activation states the objective needs: ("on", "off"), ("on",) or ("none",)."""
-    if kind == "active":
-        return ("on", "off")
-    if kind == "compliance":
-        return ("on",)
-    if kind == "passive":
-        return ("none",)
-    raise unknown("objective", kind, OBJECTIVES)
 
 
 def _locks(values: dict, motion: str) -> list:

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from kgarment import constants as C
+from kgarment.case.setup import Case
 from kgarment.constants import UNCONTROLLABLE
-from kgarment.design.setup import DesignSetup
 from kgarment.sim import SimState
 
 log = logging.getLogger(__name__)
@@ -67,23 +67,23 @@ class Control:
                 "gain": self.gain, "controllable": self.controllable}
 
 
-def control_check(setup: DesignSetup, warm: dict[str, np.ndarray] | None = None) -> list[Control]:
-    """Per motion of ``setup`` (an active objective with clutches): the fully reinforced
+def control_check(case: Case, warm: dict[str, np.ndarray] | None = None) -> list[Control]:
+    """Per motion of ``case`` (an active objective with clutches): the fully reinforced
     garment ON and OFF (warm started from ``warm`` {state name: x}, iteration 0's
     equilibria, solved on to the evaluation tolerance; OFF also from ON's equilibrium, the
     lower kept, so the gain is never negative).  Measured (2026-11-26, subdivision 0):
     the shirt's motions 1.7 / 1.4 / 4.2%, the overhead reach of ``tests/test_design_control``
     0.34%; at the design tolerance with the lagged contact set the reach came out at -4%
     (its OFF solve ending in a higher equilibrium than ON's)."""
-    keyed = [(k, s) for k, s in setup.states() if k[1] in ("on", "off")]  # ON: each motion's set
-    if not setup.n_clutches or {s for (_, s), _ in keyed} != {"on", "off"}:
+    keyed = [(k, s) for k, s in case.states() if k[1] in ("on", "off")]  # ON: each motion's set
+    if not case.n_clutches or {s for (_, s), _ in keyed} != {"on", "off"}:
         return []
     warm = warm or {}
     states = [s for _, s in keyed]
-    ones = np.ones(len(setup.areas))
+    ones = np.ones(len(case.areas))
     # at the evaluation's tolerance (a gain of a fraction of a percent is judged)
-    opts = dataclasses.replace(setup.solver, tol=min(setup.solver.tol, C.EVALUATION_TOL))
-    full = setup.solve(ones, states, warm_start=[warm.get(s.name) for s in states], options=opts)
+    opts = dataclasses.replace(case.solver, tol=min(case.solver.tol, C.EVALUATION_TOL))
+    full = case.solve(ones, states, warm_start=[warm.get(s.name) for s in states], options=opts)
     energy = {k: r.total_energy for (k, _), r in zip(keyed, full)}
     # OFF also from the ON equilibrium, the lower kept: switching clutches off lowers the
     # energy of every configuration, so OFF solved from ON's ends at or below ON.  Of a motion
@@ -92,28 +92,28 @@ def control_check(setup: DesignSetup, warm: dict[str, np.ndarray] | None = None)
     on = {k[0]: r for (k, _), r in zip(keyed, full) if k[1] == "on" and r.converged}
     again = [(k, s) for k, s in keyed if k[1] == "off" and k[0] in on]
     if again:
-        second = setup.solve(ones, [s for _, s in again], warm_start=[on[k[0]].x for k, _ in again], options=opts)
+        second = case.solve(ones, [s for _, s in again], warm_start=[on[k[0]].x for k, _ in again], options=opts)
         for (k, _), r in zip(again, second):
             if r.converged and r.total_energy < energy[k]:
                 energy[k] = r.total_energy
-    names = [c.name for c in setup.model.clutches]
+    names = [c.name for c in case.model.clutches]
 
     def which(m: str) -> str:
-        g = setup.on_activation(m)
+        g = case.on_activation(m)
         return "all" if np.all(g == 1.0) else "+".join(n for n, a in zip(names, g) if a > 0)
 
-    return [Control(m, energy[(m, "on")], energy[(m, "off")], which(m)) for m in setup.motions]
+    return [Control(m, energy[(m, "on")], energy[(m, "off")], which(m)) for m in case.motions]
 
 
-def clutch_control(setup: DesignSetup, names: list[str]) -> list[Control]:
-    """Per motion of ``setup`` and clutch (``names``, in the model's order): the screen with
+def clutch_control(case: Case, names: list[str]) -> list[Control]:
+    """Per motion of ``case`` and clutch (``names``, in the model's order): the screen with
     that clutch alone switched ON (one solve per motion and clutch, and one all OFF)."""
-    k = setup.n_clutches
+    k = case.n_clutches
     out = []
-    for motion, m in setup.motions.items():
+    for motion, m in case.motions.items():
         states = [SimState.create(m, np.zeros(k), name=f"{motion}[off]")]
         states += [SimState.create(m, np.eye(k)[j], name=f"{motion}[only {names[j]}]") for j in range(k)]
-        full = setup.solve(np.ones(len(setup.areas)), states)
+        full = case.solve(np.ones(len(case.areas)), states)
         out += [Control(motion, full[j + 1].total_energy, full[0].total_energy, names[j]) for j in range(k)]
     return out
 

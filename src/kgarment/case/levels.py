@@ -6,7 +6,7 @@ blocks (:func:`kgarment.garment.topology.midpoint_subdivide`): child ``c`` of a 
 ``m`` faces has parent ``c mod m``, and the fine level's vertices are the coarse ones
 followed by the edge midpoints.  So a design moves down a level by its children's majority
 (:func:`restrict`) and up by its parents (:func:`parent_faces`), and positions move up
-exactly by :func:`vertex_map`.  The coarse-to-fine design (:mod:`kgarment.design.refine`)
+exactly by :func:`vertex_map`.  The coarse-to-fine design (:mod:`kgarment.optimize.refine`)
 and the nested start below use these maps.
 
 **The garment as put on, solved level by level** (:func:`put_on`).  The evaluator solves
@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from kgarment.design.beso import design_values
+from kgarment.case.values import design_values
 from kgarment.garment.topology import midpoint_subdivide
 from kgarment.problem import Problem
 from kgarment.sim import SimState
@@ -83,7 +83,7 @@ def vertex_map(coarse_faces: np.ndarray, n_coarse: int, n_fine_faces: int) -> sp
 def restrict(design: np.ndarray, n_coarse: int) -> np.ndarray:
     """``design`` (n_fine,) (> 0.5 = reinforced) on the garment ``n_coarse`` faces down: a
     coarse face is reinforced where at least half of its children are (design values,
-    :func:`kgarment.design.beso.design_values`)."""
+    :func:`kgarment.case.values.design_values`)."""
     solid = np.asarray(design) > 0.5
     parent = parent_faces(len(solid), n_coarse)
     share = np.bincount(parent, weights=solid, minlength=n_coarse) / (len(solid) // n_coarse)
@@ -92,12 +92,12 @@ def restrict(design: np.ndarray, n_coarse: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Coarser:
-    """The level below a setup's garment: its ``setup`` (a DesignSetup of the same problem
-    and purpose at subdivision ``level``) and ``prolong``, the (n, n_coarse) map of garment
-    vertex positions up to the setup's garment (:func:`vertex_map`)."""
+    """The level below a case's garment: its ``case`` (the same problem, built the same way,
+    at subdivision ``level``) and ``prolong``, the (n, n_coarse) map of garment vertex
+    positions up to the case's garment (:func:`vertex_map`)."""
 
     level: int
-    setup: object
+    case: object
     prolong: sp.csr_matrix
 
 
@@ -105,34 +105,34 @@ def states_down(coarser: Coarser, states: list[SimState], tag: str = "") -> tupl
     """The ``states`` (of the level above ``coarser``) that the coarser level has: their
     indices, and each as that level's state (the same motion, activation and name, with
     ``@level<L>`` and ``tag`` appended)."""
-    low = coarser.setup
+    low = coarser.case
     idx = [i for i, s in enumerate(states) if s.motion.name in low.motions]
     return idx, [dataclasses.replace(states[i], motion=low.motions[states[i].motion.name],
                                      name=f"{states[i].name.split('@level')[0]}@level{coarser.level}{tag}")
                  for i in idx]
 
 
-def prolong(setup, coarser: Coarser, x: np.ndarray) -> np.ndarray:
+def prolong(case, coarser: Coarser, x: np.ndarray) -> np.ndarray:
     """An equilibrium ``x`` (N_coarse, 3) of ``coarser``'s garment as positions (N, 3) of
-    ``setup``'s: garment vertices by the subdivision, clutches bound to them again."""
-    return setup.model.initial_positions(coarser.prolong @ np.asarray(x)[: coarser.setup.model.n_garment])
+    ``case``'s: garment vertices by the subdivision, clutches bound to them again."""
+    return case.model.initial_positions(coarser.prolong @ np.asarray(x)[: coarser.case.model.n_garment])
 
 
-def put_on(setup, design: np.ndarray, states: list[SimState]) -> list[np.ndarray | None]:
-    """Per state of ``setup`` (a DesignSetup) the start of the garment as put on, for
-    ``design`` (m,): None (the skin-tight garment) where the setup has no coarser level or
+def put_on(case, design: np.ndarray, states: list[SimState]) -> list[np.ndarray | None]:
+    """Per state of ``case`` (a Case) the start of the garment as put on, for
+    ``design`` (m,): None (the skin-tight garment) where the case has no coarser level or
     the coarser level has no such motion, else that state's equilibrium one level down --
     itself solved from its own put-on start, the design restricted -- prolongated to this
     garment (N, 3) (module docstring)."""
-    coarser = setup.coarser() if setup.coarser is not None else None
+    coarser = case.coarser() if case.coarser is not None else None
     out: list[np.ndarray | None] = [None] * len(states)
     if coarser is None:
         return out
-    low = dataclasses.replace(coarser.setup, store=setup.store)
+    low = dataclasses.replace(coarser.case, store=case.store)
     idx, down = states_down(coarser, states)
     if not idx:
         return out
     d = restrict(design, low.model.n_faces)
     for i, r in zip(idx, low.solve(d, down, warm_start=put_on(low, d, down))):
-        out[i] = prolong(setup, coarser, r.x)
+        out[i] = prolong(case, coarser, r.x)
     return out

@@ -1,7 +1,7 @@
 """The BESO design loop over simulated states, split into pure steps.
 
 One iteration (:func:`iterate`) is four steps, each a function of the frozen
-:class:`~kgarment.design.setup.DesignSetup` and the immutable :class:`LoopState`:
+:class:`~kgarment.optimize.setup.DesignSetup` and the immutable :class:`LoopState`:
 
 1. :func:`solve`: every state (motion x activation) for the current design, warm started
    from the previous iteration's equilibria (the last converged one per state; see
@@ -18,7 +18,7 @@ One iteration (:func:`iterate`) is four steps, each a function of the frozen
 4. :func:`advance`: the next state (a new design towards the next target area, repaired
    into one part holding every clutch end unless ``connected`` is off, or done); with
    ``[design] guard``, a step that broke a motion's load path is taken back
-   (:mod:`kgarment.design.guard`).
+   (:mod:`kgarment.optimize.guard`).
 
 An iteration in which a state did not converge records its metrics (flagged in
 ``unconverged_states``) but updates the design with the previous iteration's filtered
@@ -29,7 +29,7 @@ Iteration 0 is the fully reinforced garment, so its energies are the references 
 relative energy density rho (method.md section 7) and of the objective.  It starts from the
 garment as put on: the skin-tight garment, or on a subdivided garment of more than
 ``NESTED_VERTICES`` vertices its equilibria one subdivision level down
-(:func:`kgarment.design.levels.put_on`).
+(:func:`kgarment.case.levels.put_on`).
 """
 
 from __future__ import annotations
@@ -42,10 +42,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kgarment.design.beso import converged, design_values, next_target, settled_ar, update_design
-from kgarment.design.connect import connect_design
-from kgarment.design.evaluate import MULTISTABLE, pick_equilibrium
-from kgarment.design.guard import (
+from kgarment.case.levels import put_on
+from kgarment.case.starts import MULTISTABLE, pick_equilibrium
+from kgarment.case.states import StateKey
+from kgarment.case.values import design_values
+from kgarment.evaluate.metrics import Stored, relative_energy_density, structure
+from kgarment.optimize.beso import converged, next_target, settled_ar, update_design
+from kgarment.optimize.connect import connect_design
+from kgarment.optimize.guard import (
     GAIN,
     REJECTED,
     TERM,
@@ -56,16 +60,14 @@ from kgarment.design.guard import (
     paths_of,
     terms_of,
 )
-from kgarment.design.levels import put_on
-from kgarment.design.metrics import Stored, relative_energy_density
-from kgarment.design.objective import (
+from kgarment.optimize.objective import (
     combine_sensitivities,
     combined_objective,
     motion_sensitivities,
     motion_weights,
     objective_terms,
 )
-from kgarment.design.setup import DesignSetup, StateKey
+from kgarment.optimize.setup import DesignSetup
 from kgarment.sim import (
     SimState,
     SolverOptions,
@@ -92,7 +94,7 @@ WARM_MAX_RESIDUAL = 0.0
 
 # With ``skin_start`` the loop state's ``warm`` also keeps iteration 0's (the fully reinforced
 # garment's) equilibrium of each state under its name + FULL: every iteration solves from
-# it too, the evaluator's second start (kgarment.design.evaluate).
+# it too, the evaluator's second start (kgarment.evaluate.evaluator).
 FULL = "@full"
 
 
@@ -107,7 +109,7 @@ class LoopState:
     energy J of the fully reinforced garment (iteration 0)};  reference_stored : {StateKey:
     Stored};  designs : per finished iteration its (m,) bool design;  metrics : per finished
     iteration its metrics row;  done : converged or out of iterations;  guarded : (m,) bool
-    faces kept by the step guard (:mod:`kgarment.design.guard`), or None;  accepted_alpha :
+    faces kept by the step guard (:mod:`kgarment.optimize.guard`), or None;  accepted_alpha :
     {motion: (m,) its sensitivities at the last accepted iteration whose states all
     converged} (the guard's ranking of the faces a rejected step removed; None without it).
     """
@@ -157,25 +159,25 @@ class Solved:
 
 def initial_state(setup: DesignSetup) -> LoopState:
     """Iteration 0: the fully reinforced garment."""
-    return LoopState(0, np.ones(setup.model.n_faces), 1.0, None, {}, (), {}, {}, (), ())
+    return LoopState(0, np.ones(setup.case.model.n_faces), 1.0, None, {}, (), {}, {}, (), ())
 
 
 def solve(setup: DesignSetup, st: LoopState) -> Solved:
     """Step 1: solve every state for ``st.design``, warm started."""
-    keyed = setup.states()
+    keyed = setup.case.states()
     states = [s for _, s in keyed]
     opts = setup.options(st.iteration)
     warm = [st.warm.get(s.name) for s in states]
     if not st.warm:  # iteration 0: the garment as put on (on a large subdivided garment solved one level down first)
-        warm = put_on(setup, st.design, states)
+        warm = put_on(setup.case, st.design, states)
     starts = None  # with skin_start: per state the better of the evaluator's two starts
-    if setup.skin_start and st.warm:
+    if setup.case.skin_start and st.warm:
         n = len(states)
         full = [st.warm.get(s.name + FULL) for s in states]  # the evaluator's second start (FULL)
         has = [i for i, x in enumerate(full) if x is not None]
         extra = [dataclasses.replace(s, name=s.name + "@skin-tight") for s in states] + \
             [dataclasses.replace(states[i], name=states[i].name + FULL) for i in has]
-        both = setup.solve(st.design, states + extra, warm_start=warm + [None] * n + [full[i] for i in has],
+        both = setup.case.solve(st.design, states + extra, warm_start=warm + [None] * n + [full[i] for i in has],
                            options=opts)  # one batch: the workers share the solves
         starts = [dataclasses.replace(c, name=s.name) for s, c in zip(states, both[n:2 * n])]
         results = [pick_equilibrium(w, c).result for w, c in zip(both[:n], starts)]
@@ -187,18 +189,18 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
         results, more = _continue_lower(setup, st.design, states, results, others, opts)
         both = both + more
     else:
-        results = both = setup.solve(st.design, states, warm_start=warm, options=opts)
+        results = both = setup.case.solve(st.design, states, warm_start=warm, options=opts)
     moved: list[str] = []
-    checked = bool(setup.path_start) and st.iteration > 0 and st.iteration % setup.path_start == 0
+    checked = bool(setup.beso.path_start) and st.iteration > 0 and st.iteration % setup.beso.path_start == 0
     if checked:
-        from kgarment.design.motion_start import motion_ends
+        from kgarment.optimize.motion_start import motion_ends
 
         results, moved = motion_ends(setup, st.design, keyed, results, starts)
-    factor = log_stiffness_derivative(st.design, setup.model.preset) / setup.model.preset.penal
+    factor = log_stiffness_derivative(st.design, setup.case.model.preset) / setup.case.model.preset.penal
     alpha, energy, stored = {}, {}, {}
     for (key, _), r in zip(keyed, results):
         alpha[key] = r.garment_density * factor
-        s = Stored.of(r, setup.objective != "passive")
+        s = Stored.of(r, setup.case.objective != "passive")
         stored[key] = s
         energy[key] = float(s.face_energy[st.design > 0.5].sum() + s.clutch_energy)
     return Solved([k for k, _ in keyed], states, results, opts,
@@ -226,7 +228,7 @@ def _continue_lower(setup: DesignSetup, design: np.ndarray, states: list[SimStat
     if not best:
         return results, []
     todo = sorted(best)
-    more = setup.solve(design, [dataclasses.replace(states[i], name=states[i].name + "@continued") for i in todo],
+    more = setup.case.solve(design, [dataclasses.replace(states[i], name=states[i].name + "@continued") for i in todo],
                        warm_start=[best[i].x for i in todo], options=opts)
     out = list(results)
     for i, r in zip(todo, more):
@@ -241,9 +243,9 @@ def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved,
     :func:`combine_weights`; None: 1), filtered, averaged with the previous iteration's;
     the previous ones when a state did not converge (not twice in a row); protected faces
     on top."""
-    filt = setup.filter_matrix @ combine_sensitivities(setup.objective, solved.alpha, list(setup.motions),
-                                                         setup.lockout, setup.balance, solved.energy, weights)
-    if setup.params.history and st.alpha_prev is not None:
+    filt = setup.beso.filter_matrix @ combine_sensitivities(setup.case.objective, solved.alpha, list(setup.case.motions),
+                                                         setup.case.lockout, setup.case.balance, solved.energy, weights)
+    if setup.beso.params.history and st.alpha_prev is not None:
         filt = 0.5 * (filt + st.alpha_prev)
     bad = solved.unconverged
     repeated = bool(st.metrics) and bool(st.metrics[-1]["unconverged_states"])
@@ -257,27 +259,27 @@ def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved,
         # twice in a row: the previous sensitivities would give the same design (and the same
         # failure) forever; use this iteration's, flagged in the metrics
         log.warning("iteration %d: %s did not converge again; using its sensitivities", st.iteration, ", ".join(bad))
-    if setup.protected is not None:
-        filt = np.where(setup.protected, filt.max() + 1.0, filt)
+    if setup.beso.protected is not None:
+        filt = np.where(setup.beso.protected, filt.max() + 1.0, filt)
     return filt
 
 
 def combine_weights(setup: DesignSetup, row: dict) -> dict[str, float] | None:
     """The motions' weights of ``[design] combine`` from the terms in this iteration's
-    metrics ``row`` and the setup's shares (:func:`kgarment.design.objective.motion_weights`;
+    metrics ``row`` and the setup's shares (:func:`kgarment.optimize.objective.motion_weights`;
     None for "sum" without shares)."""
-    return motion_weights(setup.combine, terms_of(row), setup.shares)
+    return motion_weights(setup.beso.combine, terms_of(row), setup.beso.shares)
 
 
 def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: dict[StateKey, float],
                 reference_stored: dict[StateKey, Stored]) -> dict:
     """Step 2: the metrics of this iteration (``seconds`` is filled in by :func:`iterate`)."""
-    areas, design = setup.areas, st.design
+    areas, design = setup.case.areas, st.design
     frac = float(areas[design > 0.5].sum() / areas.sum())
-    terms = objective_terms(setup.objective, solved.energy, reference, list(setup.motions), setup.lockout,
-                            setup.balance)
-    obj = combined_objective(setup.combine, terms, setup.shares)
-    shape = setup.structure(design)
+    terms = objective_terms(setup.case.objective, solved.energy, reference, list(setup.case.motions), setup.case.lockout,
+                            setup.case.balance)
+    obj = combined_objective(setup.beso.combine, terms, setup.beso.shares)
+    shape = structure(setup.case, design)
     row = {
         "iteration": st.iteration, "area": frac, "target": st.target, "objective": obj,
         **{k: shape[k] for k in ("islands", "islands_with_clutches", "clutch_ends_supported", "clutch_ends")},
@@ -285,14 +287,14 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
         "newton_iterations": solved.newton_iterations,
         "solver_tol": solved.options.tol,
         **({"path_checked": solved.path_checked, "path_moved": ",".join(solved.path_moved)}
-           if setup.path_start else {}),
+           if setup.beso.path_start else {}),
     }
     row.update({TERM.format(m): v for m, v in terms.items()})
-    if setup.lockout > 0 and setup.objective == "active":  # the guard's reading (kgarment.design.guard)
-        gains = objective_terms(setup.objective, solved.energy, reference, list(setup.motions), 0.0, setup.balance)
+    if setup.case.lockout > 0 and setup.case.objective == "active":  # the guard's reading (kgarment.optimize.guard)
+        gains = objective_terms(setup.case.objective, solved.energy, reference, list(setup.case.motions), 0.0, setup.case.balance)
         row.update({GAIN.format(m): v for m, v in gains.items()})
-    row.update({f"rho[{k[0]}:{k[1]}]": relative_energy_density(design, setup.areas_of(k[0]), solved.stored[k],
-                                                               reference_stored[k], setup.clutch_area_of(k[0]))
+    row.update({f"rho[{k[0]}:{k[1]}]": relative_energy_density(design, setup.case.areas_of(k[0]), solved.stored[k],
+                                                               reference_stored[k], setup.case.clutch_area_of(k[0]))
                 for k in solved.stored})
     row.update({f"energy[{k[0]}:{k[1]}]": v for k, v in solved.energy.items()})
     row.update(tension_columns(setup, st.design, solved))
@@ -303,10 +305,10 @@ def tension_columns(setup: DesignSetup, design: np.ndarray, solved: Solved) -> d
     """``tension[motion:clutch]``: N carried along each clutch in each motion's ON state
     (:func:`kgarment.sim.clutch_tensions`; cheap, from the equilibria already solved)."""
     out = {}
-    names = [c.name for c in setup.model.clutches]
+    names = [c.name for c in setup.case.model.clutches]
     for key, state, r in zip(solved.keys, solved.states, solved.results):
         if key[1] == "on" and names:
-            t = clutch_tensions(setup.model_of(key[0]), design, state, r.x, solved.options)
+            t = clutch_tensions(setup.case.model_of(key[0]), design, state, r.x, solved.options)
             out.update({f"tension[{key[0]}:{n}]": float(v) for n, v in zip(names, t)})
     return out
 
@@ -317,16 +319,16 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
     the design updated towards the next target area -- or, when the step guard rejects this
     iteration's step, made again from the last accepted iteration (``row["rejected"]``
     names the motions whose load path it broke)."""
-    p = setup.params
+    p = setup.beso.params
     rejected, guarded, base, accepted = [], st.guarded, st.design, st.accepted_alpha
     a = last_accepted(st.metrics)
-    if setup.guard > 0 and a is not None and not blinding(solved.unconverged) and not solved.path_moved:
+    if setup.beso.guard > 0 and a is not None and not blinding(solved.unconverged) and not solved.path_moved:
         removed = st.designs[a] & ~(st.design > 0.5)
-        rejected, guarded = guard_step(st.metrics, paths_of(row), setup.guard, removed, st.guarded, setup.areas,
+        rejected, guarded = guard_step(st.metrics, paths_of(row), setup.beso.guard, removed, st.guarded, setup.case.areas,
                                        st.target, st.accepted_alpha)
-    if setup.guard > 0 and not rejected and not solved.unconverged:
-        accepted = motion_sensitivities(setup.objective, solved.alpha, list(setup.motions), setup.lockout,
-                                        setup.balance, solved.energy, combine_weights(setup, row))
+    if setup.beso.guard > 0 and not rejected and not solved.unconverged:
+        accepted = motion_sensitivities(setup.case.objective, solved.alpha, list(setup.case.motions), setup.case.lockout,
+                                        setup.case.balance, solved.energy, combine_weights(setup, row))
     row[REJECTED] = ",".join(rejected)
     counts = setup.judged(st.iteration, st.target) and not (solved.unconverged or rejected)  # else NaN: not judged
     objectives = st.objectives + (row["objective"] if counts else float("nan"),)
@@ -341,18 +343,18 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
             target = next_target(st.target, p)
         rank = boosted(alpha, guarded)
         at_target = sum(1 for r in st.metrics + (row,) if p.reached(r["area"]))
-        design = update_design(base, rank, setup.areas, target, p, settled_ar(p, at_target))
-        if p.connected and setup.ends:
-            design = design_values(connect_design(design > 0.5, alpha, setup.areas, target, setup.adjacency,
-                                                  setup.all_end_faces, setup.attached, setup.loop_faces, guarded,
-                                                  setup.end_partners()))
-        if setup.protected is not None:
-            design[setup.protected] = 1.0
+        design = update_design(base, rank, setup.case.areas, target, p, settled_ar(p, at_target))
+        if p.connected and setup.case.ends:
+            design = design_values(connect_design(design > 0.5, alpha, setup.case.areas, target, setup.case.adjacency,
+                                                  setup.case.all_end_faces, setup.case.attached, setup.beso.loop_faces, guarded,
+                                                  setup.case.end_partners()))
+        if setup.beso.protected is not None:
+            design[setup.beso.protected] = 1.0
     warm = st.warm if rejected else {
         **{k: x for k, x in st.warm.items() if k.endswith(FULL)},
         **{s.name: r.x if r.converged or r.convergence.residual <= WARM_MAX_RESIDUAL or s.name not in st.warm
            else st.warm[s.name] for s, r in zip(solved.states, solved.results)}}
-    if setup.skin_start and st.iteration == 0:  # the fully reinforced garment's equilibria: a start of every iteration
+    if setup.case.skin_start and st.iteration == 0:  # the fully reinforced garment's equilibria: a start of every iteration
         warm.update({s.name + FULL: r.x for s, r in zip(solved.states, solved.results) if r.converged})
     return LoopState(st.iteration + 1, design, target, alpha, warm, objectives, reference, reference_stored,
                      st.designs + (st.design > 0.5,), st.metrics + (row,), done, guarded, accepted)

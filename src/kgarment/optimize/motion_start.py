@@ -2,7 +2,7 @@
 are solved over their motion from rest **as the evaluator solves them**, and the loop goes on
 from that end where it is clearly lower (README, "Design runs").
 
-The check is :func:`kgarment.design.path.path_forces` itself, ON states only: the design's
+The check is :func:`kgarment.evaluate.path.path_forces` itself, ON states only: the design's
 rest equilibrium from the evaluator's starts, :data:`~kgarment.constants.PATH_FRAMES` frames
 each predicted from the ones before, skin friction holding each frame where the one before
 left the garment, the evaluator's two starts where a frame does not converge, all at the
@@ -27,29 +27,30 @@ log = logging.getLogger(__name__)
 def motion_ends(setup, design: np.ndarray, keyed, results: list, starts: list | None = None
                 ) -> tuple[list, list[str]]:
     """Each ON state of ``keyed`` ([(StateKey, SimState)]) of a motion with frames in
-    ``setup.path_frames`` solved over its motion from rest as the evaluator does (module doc).
+    ``setup.beso.path_frames`` solved over its motion from rest as the evaluator does (module doc).
 
     With ``starts`` (per state, the better of this iteration's solves from the evaluator's two
     starts; ``skin_start``) the state becomes what the evaluator reports: the lower of those
-    and the motion's end (:func:`kgarment.design.evaluate.with_known`), not an equilibrium
+    and the motion's end (:func:`kgarment.case.starts.with_known`), not an equilibrium
     only the loop's continuation from the iterations before reaches, higher or lower (measured
     on the selective sleeve, 2026-11-29: continued from the motion's end of an iteration
     before, the loop read flexion's rho ON 0.72 for designs whose motion from rest ends at 1.03,
     docs/notes/selective.md).  Without, the end replaces ``results``' equilibrium (the same
     order) where it is converged and lower by more than MULTISTABLE.  Returns (the results,
     the motions whose ON state changed by more than MULTISTABLE)."""
-    from kgarment.design.evaluate import Equilibrium, Evaluator, pick_equilibrium, with_known
-    from kgarment.design.path import path_forces
+    from kgarment.case.starts import Equilibrium, pick_equilibrium, with_known
+    from kgarment.evaluate.evaluator import Evaluator
+    from kgarment.evaluate.path import path_forces
 
-    _, index = setup.path_frames
+    _, index = setup.beso.path_frames
     framed = {m for _, m, _ in index}
     motions = list(dict.fromkeys(m for (m, s), _ in keyed if s == "on" and m in framed))
     if not motions:
         return results, []
-    tight = dataclasses.replace(setup.solver, tol=min(setup.solver.tol, EVALUATION_TOL))
-    evaluator = Evaluator(dataclasses.replace(setup, solver=tight, evolution_solver=None))
+    tight = dataclasses.replace(setup.case.solver, tol=min(setup.case.solver.tol, EVALUATION_TOL))
+    evaluator = Evaluator(dataclasses.replace(setup.case, solver=tight))
     frames = sum(1 for _, m, _ in index if m == motions[0])
-    report = path_forces(evaluator, design, None, motions, frames, kinds=("on",), framed=setup.path_frames)
+    report = path_forces(evaluator, design, None, motions, frames, kinds=("on",), framed=setup.beso.path_frames)
     out, moved = list(results), []
     for i, ((m, s), st) in enumerate(keyed):
         end = report.ends.get((m, s)) if s == "on" else None

@@ -1,7 +1,7 @@
 """Switching a state's clutches on in steps: for states whose stiff ON clutches make the
 direct solve slow (a garment sliding a long way before it settles).  Used by the evaluator
-(:mod:`kgarment.design.evaluate`, a state converged from neither start) and by the per-clutch
-loads (:mod:`kgarment.design.loads`, a load state still sliding after going on).
+(:mod:`kgarment.evaluate.evaluator`, a state converged from neither start) and by the per-clutch
+loads (:mod:`kgarment.evaluate.loads`, a load state still sliding after going on).
 """
 
 from __future__ import annotations
@@ -11,14 +11,14 @@ import logging
 
 import numpy as np
 
-from kgarment.design.setup import DesignSetup
+from kgarment.case.setup import Case
 from kgarment.sim import SimState, SolverOptions, StateResult
 
 log = logging.getLogger(__name__)
 CONTINUATION = (0.0, 0.25, 0.5, 0.75, 1.0)  # the activation's steps, as shares of the state's
 
 
-def activation_continuation(setup: DesignSetup, design: np.ndarray, states: list[SimState],
+def activation_continuation(case: Case, design: np.ndarray, states: list[SimState],
                             offs: list[StateResult | None] | None = None,
                             options: SolverOptions | None = None) -> list[StateResult]:
     """Solve ``states`` for ``design`` (m,) by switching their clutches on in steps: each
@@ -30,7 +30,7 @@ def activation_continuation(setup: DesignSetup, design: np.ndarray, states: list
     The states take each step together, one batch of solves per step (the workers share
     them).  ``offs``: per state its motion's clutches-off equilibrium from the skin-tight start
     where it is already solved (None: solve it): the same solve as the first step, so it is
-    not repeated.  ``options``: the setup's solver options unless given.
+    not repeated.  ``options``: the case's solver options unless given.
 
     For states whose stiff ON clutches make the direct solve slow: on the long sleeve's
     bend-forward state (preview resolution, its iteration-117 design) the direct cold
@@ -49,7 +49,7 @@ def activation_continuation(setup: DesignSetup, design: np.ndarray, states: list
         steps = [states[i] if f == 1.0 else SimState.create(
             states[i].motion, f * np.asarray(states[i].activation, dtype=np.float64), name=f"{states[i].name}@{f:g}")
             for i in todo]
-        done = dict(zip(todo, setup.solve(design, steps, warm_start=[xs[i] for i in todo], options=options))) \
+        done = dict(zip(todo, case.solve(design, steps, warm_start=[xs[i] for i in todo], options=options))) \
             if todo else {}
         for i in range(len(states)):
             r = done.get(i, offs[i] if k == 0 else None)

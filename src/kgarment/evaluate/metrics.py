@@ -70,3 +70,23 @@ def clutch_end_support(design: np.ndarray, end_faces) -> list[tuple[bool, bool]]
     faces under that end's anchors are reinforced). end_faces: [(faces_a, faces_b), ...]."""
     solid = design > 0.5
     return [(bool(solid[a].mean() > 0.5), bool(solid[b].mean() > 0.5)) for a, b in end_faces]
+
+
+def structure(case, design: np.ndarray) -> dict:
+    """The paper's structural properties of ``design`` (m,) on ``case`` (a :class:`kgarment.case.Case`): ``islands`` (parts of the
+    reinforcement), ``islands_with_clutches`` (parts when each clutch joins the parts its
+    ends sit on; the most over the wearers), ``clutch_ends_supported`` / ``clutch_ends``
+    (over every wearer) and, for a multi-body design, ``by_wearer`` {name: the same three}."""
+    faces = case.model.garment_faces
+    per = {}
+    for name, ends in case.wearer_end_faces().items():
+        sup = clutch_end_support(design, ends)
+        per[name] = {"islands_with_clutches": islands(faces, design, links=ends, adjacency=case.adjacency),
+                     "clutch_ends_supported": int(sum(a + b for a, b in sup)), "clutch_ends": 2 * len(sup)}
+    out = {"islands": islands(faces, design, adjacency=case.adjacency),
+           "islands_with_clutches": max(v["islands_with_clutches"] for v in per.values()),
+           "clutch_ends_supported": sum(v["clutch_ends_supported"] for v in per.values()),
+           "clutch_ends": sum(v["clutch_ends"] for v in per.values())}
+    if case.wearers:
+        out["by_wearer"] = per
+    return out

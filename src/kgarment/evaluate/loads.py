@@ -31,7 +31,7 @@ would be noise).
 Garment energy is the total energy of an equilibrium (J).  It includes what the garment
 already holds at rest (its attachment rings and the body's contact keep it stretched; a
 taut clutch): the work the wearer does over the motion is the energy at the target less
-that at rest (:func:`kgarment.design.path.rest_frames`, ``evaluate --path``); differences
+that at rest (:func:`kgarment.evaluate.path.rest_frames`, ``evaluate --path``); differences
 between activations of one design (ON - OFF, the shares) are what the clutches add.  The all-ON and all-OFF equilibria
 come from the one design evaluator (:meth:`kgarment.design.Evaluator.solve_design`: its
 two starts, the evaluation tolerance); a state with one clutch ON, or one OFF, starts
@@ -55,8 +55,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from kgarment.case.continuation import activation_continuation
 from kgarment.constants import LOAD_TOL, LOADED_SHARE, MIN_GAIN
-from kgarment.design.continuation import activation_continuation
 from kgarment.io import save_figure
 from kgarment.sim import StateResult, clutch_tensions, prepare_state
 from kgarment.sim.slip import slides
@@ -157,11 +157,11 @@ def on_off_equilibria(evaluator, design: np.ndarray, motions, known: dict | None
     the ON state (its activation set, every clutch by default) and OFF (none), whatever the
     objective, with their equilibria of ``design`` (m,) from the evaluator's two starts;
     equilibria already in ``known`` are reused (and returned with the others)."""
-    setup = evaluator.setup
+    case = evaluator.case
     keyed = []
     for m in motions:
-        keyed += evaluator.activation_states(setup.on_activation(m), [m], "on") + \
-            evaluator.activation_states(np.zeros(setup.n_clutches), [m], "off")
+        keyed += evaluator.activation_states(case.on_activation(m), [m], "on") + \
+            evaluator.activation_states(np.zeros(case.n_clutches), [m], "off")
     known = dict(known or {})
     todo = [(key, st) for key, st in keyed if key not in known]
     if todo:
@@ -179,7 +179,7 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     :data:`LOAD_TOL`; a state that does not
     converge in the solver's iterations goes on from where it stopped for as many again, one
     still sliding then has its clutches switched on in steps from the motion's OFF
-    equilibrium (:func:`kgarment.design.continuation.activation_continuation`, at ``LOAD_TOL``),
+    equilibrium (:func:`kgarment.case.continuation.activation_continuation`, at ``LOAD_TOL``),
     and one that does not converge even so goes through the evaluator's two starts.  These solves
     have no rescue (a second solve with larger shifts, ``SolverOptions.rescue_shifts``) and
     do not warn about the states they leave unconverged: the two starts follow anyway (and
@@ -203,19 +203,19 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     (2.1 more at the coarser levels), two of them (arms raise with the upper back clutch
     alone, bend forward without the right lower one) went on from where they stopped, and
     none needed the continuation or the two starts."""
-    setup = evaluator.setup
-    opts = dataclasses.replace(setup.solver, tol=max(setup.solver.tol, LOAD_TOL), rescue_shifts=0, on_fail="info")
-    starts = [nearer_start(setup, design, st, [known[(key[0], "on")].x, known[(key[0], "off")].x])
+    case = evaluator.case
+    opts = dataclasses.replace(case.solver, tol=max(case.solver.tol, LOAD_TOL), rescue_shifts=0, on_fail="info")
+    starts = [nearer_start(case, design, st, [known[(key[0], "on")].x, known[(key[0], "off")].x])
               if x is None else x for (key, st), x in zip(keyed, coarse_starts(evaluator, design, keyed))]
-    solved = setup.solve(design, [st for _, st in keyed], warm_start=starts, options=opts)
+    solved = case.solve(design, [st for _, st in keyed], warm_start=starts, options=opts)
     out = {key: r for (key, _), r in zip(keyed, solved) if r.converged}
     slow = [i for i, (key, _) in enumerate(keyed) if key not in out]
     if slow:  # one more round from where they stopped (slow sliding, not a wrong start)
-        again = setup.go_on(design, [keyed[i][1] for i in slow], [solved[i] for i in slow], opts)
+        again = case.go_on(design, [keyed[i][1] for i in slow], [solved[i] for i in slow], opts)
         out.update({keyed[i][0]: r for i, r in zip(slow, again) if r.converged})
     retry = [(key, st) for key, st in keyed if key not in out]
     if retry:  # still sliding: the clutches switched on in steps from the motion's OFF equilibrium
-        stepped = activation_continuation(setup, design, [st for _, st in retry],
+        stepped = activation_continuation(case, design, [st for _, st in retry],
                                           [known[(key[0], "off")] for key, _ in retry], options=opts)
         out.update({key: r for (key, _), r in zip(retry, stepped) if r.converged})
     retry = [(key, st) for key, st in keyed if key not in out]
@@ -233,7 +233,7 @@ def coarse_starts(evaluator, design: np.ndarray, keyed) -> list[np.ndarray | Non
     restricted and the state solved as here -- from that level's all-ON or all-OFF
     equilibrium, itself from the evaluator's two starts -- so the garment does its slide to
     the new activation where a Newton step moves it furthest (nested iteration,
-    :mod:`kgarment.design.levels`)."""
+    :mod:`kgarment.case.levels`)."""
     out: list[np.ndarray | None] = [None] * len(keyed)
     low = evaluator.coarser
     if low is None:
@@ -247,14 +247,14 @@ def coarse_starts(evaluator, design: np.ndarray, keyed) -> list[np.ndarray | Non
     return out
 
 
-def nearer_start(setup, design: np.ndarray, state, starts: list[np.ndarray]) -> np.ndarray:
+def nearer_start(case, design: np.ndarray, state, starts: list[np.ndarray]) -> np.ndarray:
     """Of ``starts`` (each (N, 3) positions, m), the one where ``state``'s energy is lowest
     for ``design`` (m,): a clutch that carries nothing switched on alone leaves the garment
     near its all-OFF equilibrium, one switched off alone near its all-ON one.  Measured on
     the main job's design (subdivision 0, 2026-11-25): its 18 one-clutch states took 1,206
     Newton iterations from the all-ON equilibria, 976 from the nearer start, and the two
     lower clutches alone in arms forward settled 0.3 J lower (share 0.02 -> 0.00)."""
-    prob = prepare_state(setup.model_of(state.motion.name), design, state, setup.solver)
+    prob = prepare_state(case.model_of(state.motion.name), design, state, case.solver)
     energies = [prob.evaluate(torch.as_tensor(np.asarray(x, dtype=np.float64), device=prob.device), order=0,
                               check=False)[0] for x in starts]
     return starts[int(np.argmin(energies))]
@@ -266,13 +266,13 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
     evaluator : kgarment.design.Evaluator (with clutches);  known : {(motion, "on" | "off"):
     StateResult} equilibria already solved (by :meth:`Evaluator.evaluate`), reused.
     """
-    setup = evaluator.setup
-    names = [c.name for c in setup.model.clutches]
+    case = evaluator.case
+    names = [c.name for c in case.model.clutches]
     motions = evaluator.motion_names(motions)
     ends, known = on_off_equilibria(evaluator, design, motions, known)
     alone, without, todo = {}, {}, []
     for m in motions:
-        g_on = setup.on_activation(m)
+        g_on = case.on_activation(m)
         same = {tuple(np.zeros(len(names))): (m, "off")}  # activation -> the state solving it
         for k, name in enumerate(names):  # a clutch alone at its value in the motion's set (1 if not in it)
             alone[(m, k)] = _state_for(evaluator, m, _one_hot(len(names), k, g_on[k] if g_on[k] > 0 else 1.0),
@@ -288,9 +288,9 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
         on: StateResult = known[(m, "on")]
         e_on, e_off = on.total_energy, known[(m, "off")].total_energy
         garment.append(MotionEnergy(m, e_on, e_off))
-        tension = clutch_tensions(setup.model_of(m), design, states[(m, "on")], on.x, setup.solver)
+        tension = clutch_tensions(case.model_of(m), design, states[(m, "on")], on.x, case.solver)
         gain = e_on - e_off
-        hold = setup.model_of(m).holding(setup.on_activation(m))
+        hold = case.model_of(m).holding(case.on_activation(m))
         for k, name in enumerate(names):
             share = needed = float("nan")
             if gain > MIN_GAIN * abs(e_off):

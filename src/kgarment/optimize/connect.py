@@ -221,7 +221,7 @@ def connect_design(solid: np.ndarray, alpha: np.ndarray, areas: np.ndarray, targ
     (m, m) face adjacency; ends : [(faces under end A, under end B)] per clutch; attached :
     (a,) attachment faces; loop_faces : per boundary loop, the faces touching it
     (:func:`anchored`);  keep : (m,) bool faces of ``solid`` that stay, joined to the rest
-    like the clutch ends' paths (the step guard's, :mod:`kgarment.design.guard`), or None;
+    like the clutch ends' paths (the step guard's, :mod:`kgarment.optimize.guard`), or None;
     partners : per clutch of ``ends``, the indices of the clutches switched on together with
     it in some motion (the only ones its ends' paths may pass), or None: every other clutch
     (all clutches ON together).  Returns (m,) bool."""

@@ -1,7 +1,7 @@
 """Bi-directional evolutionary structural optimization (BESO), split along its seams:
 interpolation, sensitivities, filter, history, area schedule and the add/remove update.
 
-All functions are pure; the loop in :mod:`kgarment.design.loop` strings them together.
+All functions are pure; the loop in :mod:`kgarment.optimize.loop` strings them together.
 Design variable x_e in {x_min, 1} per garment triangle (soft-kill, method.md section 6).
 """
 
@@ -12,6 +12,7 @@ import math
 import numpy as np
 import scipy.sparse as sp
 
+from kgarment.case.values import design_values
 from kgarment.constants import PENALTY, X_MIN
 from kgarment.problem.spec import BesoParams
 
@@ -20,7 +21,6 @@ __all__ = [
     "X_MIN",
     "BesoParams",
     "converged",
-    "design_values",
     "expected_iterations",
     "interpolate",
     "next_target",
@@ -30,12 +30,6 @@ __all__ = [
     "settled_ar",
     "update_design",
 ]
-
-
-def design_values(reinforced: np.ndarray) -> np.ndarray:
-    """(m,) float64 design for the simulator from (m,) bool ``reinforced``: 1.0 where
-    reinforced, :data:`~kgarment.constants.X_MIN` (plain cloth) elsewhere."""
-    return np.where(np.asarray(reinforced, dtype=bool), 1.0, X_MIN)
 
 
 def interpolate(x: np.ndarray, y0: float | np.ndarray, y1: float | np.ndarray, p: float = PENALTY) -> np.ndarray:

@@ -51,9 +51,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kgarment.case.frames import REST, frame_motions
+from kgarment.case.starts import MULTISTABLE
 from kgarment.constants import PATH_FRAMES
-from kgarment.design.evaluate import MULTISTABLE
-from kgarment.design.frames import REST, frame_motions
 from kgarment.errors import KgarmentError
 from kgarment.io import time_left
 from kgarment.sim import SimState, clutch_tensions, held_after
@@ -207,14 +207,14 @@ def _moving(curve: list[PathFrame], k: int) -> np.ndarray:
     return np.array([f.tension_N[k] for f in curve if f.t > 0.0] or [0.0])
 
 
-def _rest_states(setup, motions, sim_motions, kinds=STATES) -> tuple[dict, dict]:
+def _rest_states(case, motions, sim_motions, kinds=STATES) -> tuple[dict, dict]:
     """The rest pose's states of ``motions``: ({(motion, state): its key}, {key: (evaluator
     key, SimState)}); states of equal activation (the key: its bytes) are one state."""
     key_of: dict[tuple[str, str], bytes] = {}
     unique: dict[bytes, tuple] = {}
     for m in motions:
         for s in kinds:
-            a = np.asarray(setup.on_activation(m) if s == "on" else np.zeros(setup.n_clutches), dtype=np.float64)
+            a = np.asarray(case.on_activation(m) if s == "on" else np.zeros(case.n_clutches), dtype=np.float64)
             key_of[(m, s)] = b = a.tobytes()
             if b not in unique:  # keyed "@rest": the evaluator keeps equilibria per key (a motion may be "rest")
                 label = f"on:{m}" if s == "on" else "off"  # "off": the clutched states' second start
@@ -244,26 +244,26 @@ def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: in
     (:func:`frame_motions` with ``rest``) and the first frames' equilibria {(motion,
     state): (N, 3)} where the caller has them; else they are made (the first frame solved
     from the rest equilibrium, as :func:`path_forces` starts); ``attached`` as there."""
-    setup, model = evaluator.setup, evaluator.setup.model
+    case, model = evaluator.case, evaluator.case.model
     motions = evaluator.motion_names(motions)
     design = np.asarray(design, dtype=np.float64)
     if sim_motions is None or first is None:
         sim_motions, index = frame_motions(problem, motions, frames, rest=True, attached=attached)
         labels = {m: next(label for label, mm, _ in index if mm == m) for m in motions}
-    key_of, unique = rest = _rest_states(setup, motions, sim_motions, kinds)
+    key_of, unique = rest = _rest_states(case, motions, sim_motions, kinds)
     start = _rest_starts(evaluator, design, rest)
     if first is None:
         keys = list(key_of)
         states = [SimState.create(sim_motions[labels[m]], unique[key_of[(m, s)]][1].activation, name=f"{m}@1[{s}]")
                   for m, s in keys]
-        got = setup.solve(design, states, options=setup.solver,
+        got = case.solve(design, states, options=case.solver,
                           warm_start=[predicted(model, _from_rest(start[k], sim_motions), st.motion)
                                       for k, st in zip(keys, states)])
         first = {k: r.x for k, r in zip(keys, got)}
     best = {key_of[k]: r for k, r in start.items()}
     keys = [k for k in key_of if k in first]
-    back = setup.solve(design, [dataclasses.replace(unique[key_of[k]][1], name=f"rest<-{k[0]}[{k[1]}]")
-                                for k in keys], warm_start=[first[k] for k in keys], options=setup.solver)
+    back = case.solve(design, [dataclasses.replace(unique[key_of[k]][1], name=f"rest<-{k[0]}[{k[1]}]")
+                                for k in keys], warm_start=[first[k] for k in keys], options=case.solver)
     for k, r in zip(keys, back):
         b = best[key_of[k]]
         if r.converged and (not b.converged or r.total_energy < b.total_energy * (1 - 1e-9)):
@@ -271,7 +271,7 @@ def rest_frames(evaluator, design: np.ndarray, problem, motions=None, frames: in
     out = []
     for (m, s), b in key_of.items():
         r, st = best[b], unique[b][1]
-        tension = clutch_tensions(model, design, st, r.x, setup.solver)
+        tension = clutch_tensions(model, design, st, r.x, case.solver)
         out.append(PathFrame(m, s, 0.0, float(r.total_energy), tuple(float(v) for v in tension), bool(r.converged)))
     return out
 
@@ -296,9 +296,9 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
     kinds : which of ON and OFF (the design loop's check: ON only);  framed : the frames
     (:func:`frame_motions` of ``frames`` with ``rest``) where the caller has them.
     """
-    setup = evaluator.setup
-    model = setup.model
-    if setup.wearers:
+    case = evaluator.case
+    model = case.model
+    if case.wearers:
         raise KgarmentError("--path: the force over the motion is solved on one body; a multi-body design's "
                             "wearers are evaluated at their target poses only (evaluate without --path)")
     motions = evaluator.motion_names(motions)
@@ -310,13 +310,13 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
     names = [c.name for c in model.clutches]
 
     def state(label: str, motion: str, s: str, anchor: np.ndarray | None = None) -> SimState:
-        g = setup.on_activation(motion) if s == "on" else np.zeros(setup.n_clutches)
+        g = case.on_activation(motion) if s == "on" else np.zeros(case.n_clutches)
         return SimState.create(sim_motions[label], g, name=f"{label}[{s}]", anchor=anchor)
 
     by_motion = {m: [(label, t) for label, mm, t in index if mm == m] for m in motions}
     if report is not None:
         report("rest pose (t = 0)")
-    rest_states = _rest_states(setup, motions, sim_motions, kinds)
+    rest_states = _rest_states(case, motions, sim_motions, kinds)
     rest = _rest_starts(evaluator, design, rest_states)
     # (motion, state, frame): (SimState, equilibrium) of the frames solved, the rest pose as frame -1
     solved_states = {(*k, -1): (rest_states[1][b][1], rest[k].x) for k, b in rest_states[0].items()
@@ -330,7 +330,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
 
     def held(m: str, s: str, i: int) -> np.ndarray | None:  # where friction holds frame i (module doc)
         return held_at(model, design, solved_states.get((m, s, i - 1)), sim_motions[by_motion[m][i][0]],
-                       setup.solver)
+                       case.solver)
 
     started = time.perf_counter()
     for i in range(frames):
@@ -341,7 +341,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         keys = [(m, s, i) for m in motions for s in kinds]
         states = [state(by_motion[m][i][0], m, s, anchor=held(m, s, i)) for m, s, _ in keys]
         warm = [predicted(model, before(m, s, i), st.motion) for (m, s, _), st in zip(keys, states)]
-        solved = setup.solve(design, states, warm_start=warm, options=setup.solver)
+        solved = case.solve(design, states, warm_start=warm, options=case.solver)
         retry = [j for j, r in enumerate(solved) if not r.converged]
         if retry:  # the evaluator's two starts (skin-tight, fully reinforced garment)
             # keyed by frame: the evaluator keeps equilibria per key, and a frame is not the target
@@ -361,10 +361,10 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         for s in kinds:
             for i, (label, t) in enumerate(by_motion[m]):
                 r = results[(m, s, i)]
-                tension = clutch_tensions(model, design, state(label, m, s), r.x, setup.solver)
+                tension = clutch_tensions(model, design, state(label, m, s), r.x, case.solver)
                 out.append(PathFrame(m, s, t, float(r.total_energy), tuple(float(v) for v in tension),
                                      bool(r.converged), (m, s, i) in resolved))
-    holding_n = tuple((m, tuple(float(h) for h in model.holding(setup.on_activation(m)))) for m in motions) \
+    holding_n = tuple((m, tuple(float(h) for h in model.holding(case.on_activation(m)))) for m in motions) \
         if model.slips else ()
     ends = {(m, s): results[(m, s, frames - 1)] for m in motions for s in kinds}
     return PathReport(tuple(names), tuple(out), holding_n, ends)
@@ -415,7 +415,7 @@ def _anchor_target(evaluator, design, motions, frames, by_motion, state, results
     (motion, state) paths go step by step together, one batch of solves per step (the
     workers share them; each path's sweep is what it would be alone).  Returns the keys
     replaced."""
-    setup = evaluator.setup
+    case = evaluator.case
     keys = [(m, s) for m in motions for s in STATES if (m, s, frames - 1) in results]
     # keyed like the evaluator's own target states: the same pose, so its equilibria there
     # (and its fully reinforced references) are reused and its numbers are the path's end
@@ -433,8 +433,8 @@ def _anchor_target(evaluator, design, motions, frames, by_motion, state, results
                  r.total_energy)
     while sweep:
         items = list(sweep.items())
-        again = setup.solve(design, [state(by_motion[m][i][0], m, s) for (m, s), i in items],
-                            warm_start=[results[(m, s, i + 1)].x for (m, s), i in items], options=setup.solver)
+        again = case.solve(design, [state(by_motion[m][i][0], m, s) for (m, s), i in items],
+                            warm_start=[results[(m, s, i + 1)].x for (m, s), i in items], options=case.solver)
         sweep = {}
         for ((m, s), i), a in zip(items, again):
             if a.converged and a.total_energy < results[(m, s, i)].total_energy * (1 - 1e-9):
@@ -451,7 +451,7 @@ def _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results
     lowest-energy converged equilibrium.  Every (motion, state) path is repaired on its own
     (:func:`_jump_repairs`); their solves go in one batch per step.  Returns the (motion,
     state, frame) keys replaced."""
-    options = evaluator.setup.solver
+    options = evaluator.case.solver
     replaced: set = set()
     pending = {}
     for m in motions:
@@ -463,7 +463,7 @@ def _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results
     while pending:
         keys = list(pending)
         asks = [pending[k][1] for k in keys]  # (state, warm start, evaluator key)
-        warm = evaluator.setup.solve(design, [a[0] for a in asks], warm_start=[a[1] for a in asks], options=options)
+        warm = evaluator.case.solve(design, [a[0] for a in asks], warm_start=[a[1] for a in asks], options=options)
         starts = evaluator.equilibria(design, [(a[2], a[0]) for a in asks])
         for k, w, e in zip(keys, warm, starts):
             gen = pending.pop(k)[0]

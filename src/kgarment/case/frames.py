@@ -1,5 +1,5 @@
 """A motion's frames from rest to its target pose, for the force over the motion
-(:mod:`kgarment.design.path`) and the design loop's motion start (``[solver] path_start``)."""
+(:mod:`kgarment.evaluate.path`) and the design loop's motion start (``[solver] path_start``)."""
 
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ def early_motions(problem) -> dict:
 def early_shares(early) -> dict[str, float]:
     """{design state name: its share of the objective} of ``[design] early`` ((motion, t),
     ...): a motion and its k early poses 1 / (1 + k) each, so that together they count as
-    one motion (:mod:`kgarment.design.objective`)."""
+    one motion (:mod:`kgarment.optimize.objective`)."""
     k = {}
     for m, _ in early:
         k[m] = k.get(m, 0) + 1

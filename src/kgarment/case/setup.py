@@ -1,8 +1,9 @@
-"""The design loop's precomputed, frozen setup: model, motions, objective, BESO parameters,
-solver options, filter, adjacency and the faces under every clutch end.
+"""The solvable problem on a body: the garment and clutches as a simulator model, the
+motions, the states they are solved in, and the equilibria's store.
 
-Built once per run (:func:`setup_from_problem` for a problem, :meth:`DesignSetup.build`
-from parts); the loop, the evaluator and the final report only read it.
+A :class:`Case` is built once (:func:`case_from_problem` for a problem, :meth:`Case.build`
+from parts) and only read afterwards: the evaluator (:mod:`kgarment.evaluate`) measures
+designs of it, the optimiser (:mod:`kgarment.optimize`) adds its own settings beside it.
 """
 
 from __future__ import annotations
@@ -17,17 +18,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from kgarment import constants
-from kgarment.design.beso import one_ring_filter, radius_filter
-from kgarment.design.levels import Coarser, level_problem, vertex_map
-from kgarment.design.metrics import clutch_end_support, islands
-from kgarment.design.objective import states_needed
-from kgarment.design.store import shared_store
-from kgarment.design.wearers import ClutchEnds, Wearer, clutch_ends, wearer_motions
+from kgarment.case.levels import Coarser, level_problem, vertex_map
+from kgarment.case.states import LOCK, SOLO, StateKey, states_needed
+from kgarment.case.store import shared_store
+from kgarment.case.wearers import ClutchEnds, Wearer, clutch_ends, wearer_motions
 from kgarment.errors import KgarmentError
 from kgarment.garment import Garment
-from kgarment.garment.topology import boundary_loops, face_adjacency, triangle_areas
+from kgarment.garment.topology import face_adjacency, triangle_areas
 from kgarment.problem import (
-    BesoParams,
     Problem,
     build_clutches,
     build_garment,
@@ -39,100 +37,64 @@ from kgarment.sim import Motion, SimModel, SimState, SolverOptions, garment_moti
 
 log = logging.getLogger(__name__)
 
-StateKey = tuple[str, str]  # (motion, "on" | "off" | "none" | "lock:OTHER MOTION" | "solo:CLUTCH")
-LOCK = "lock:"  # state label prefix: a motion under another motion's activation set
-SOLO = "solo:"  # state label prefix: a motion with one clutch of its set ON, the others OFF
+__all__ = ["Case", "LOCK", "SOLO", "StateKey", "activation_vectors", "case_from_problem", "protected_faces"]
 
 
-@dataclass(frozen=True)
-class DesignSetup:
-    """Everything the loop needs, precomputed once.
+@dataclass(frozen=True, kw_only=True)
+class Case:
+    """A garment with its clutches on a body, its motions and the states they are solved in.
 
-    model : SimModel (garment + clutches);  motions : {name: Motion};
-    objective : "active" | "passive" | "compliance";  params : BesoParams;
-    solver : SolverOptions of iteration 0 (and of evaluations);
-    evolution_solver : the options of every later iteration (None: ``solver``; see
-    ``kgarment.problem.SolverSpec``);  protected : (m,) bool faces kept
-    reinforced, or None;  areas : (m,) rest face areas, m^2;  filter_matrix : (m, m) CSR
-    sensitivity filter;  adjacency : (m, m) CSR face adjacency;  ends : one ClutchEnds per
-    clutch;  clutch_area : total rest area of the clutches, m^2 (0 for the passive objective);
-    attached : (a,) attachment faces;  loop_faces : per boundary loop of the garment, the
-    faces touching it (both for :func:`kgarment.design.connect.connect_design`);
-    skin_start : iterations also solve from the skin-tight start (``SolverSpec.skin_start``);
-    activation : {motion: (K,) activation in [0, 1] of its ON state} ([motions.activation];
-    a motion not in it switches every clutch on);  lockout : weight of the penalty on what
-    other motions' sets store in a motion (the active objective's ``lock:`` states);
-    balance : weight of the reward for each clutch of a motion's set carrying load on its
-    own (the active objective's ``solo:`` states): one number for every motion, or
-    {motion: weight} (the setup's motion names; a motion not in it: 0);  guard : the step guard's share
-    (:mod:`kgarment.design.guard`; 0: off);  combine : "sum" or "product" of the motions'
-    terms (:mod:`kgarment.design.objective`);  wearers : {motion: Wearer} of a multi-body
-    design (every motion ``MOTION@BODY``; {} for one body: ``model`` and ``areas`` serve all);
-    path_start : every this many iterations the ON states are also solved over their motion
-    from rest (``SolverSpec.path_start``; 0: never);  path_frames : for ``path_start``, the
-    evaluator's frames of the motions ({frame: Motion} with the rest pose, [(frame, motion,
-    t)]: :func:`kgarment.design.frames.frame_motions`), else ();
-    shares : {motion: its share of the objective} (a motion not in it: 1): a motion and the
-    early poses ``[design] early`` adds for it split one, times the motion's ``[design]
-    weights`` (:mod:`kgarment.design.objective`).
+    model : SimModel (garment + clutches);  motions : {name: Motion};  objective : which
+    states each motion is solved in ("active": ON and OFF, "compliance": ON, "passive":
+    none; :func:`kgarment.case.states.states_needed`);  solver : SolverOptions of its solves;
+    areas : (m,) rest face areas, m^2;  adjacency : (m, m) CSR face adjacency;  ends : one
+    ClutchEnds per clutch;  clutch_area : total rest area of the clutches, m^2 (0 for the
+    passive objective);  attached : (a,) attachment faces;  skin_start : also solve from the
+    skin-tight start (``SolverSpec.skin_start``);  activation : {motion: (K,) activation in
+    [0, 1] of its ON state} ([motions.activation]; a motion not in it switches every clutch
+    on);  lockout : > 0 adds, for every motion, the motion under each other motion's set
+    (``lock:`` states);  balance : one number for every motion, or {motion: weight} (a motion
+    not in it: 0): > 0 adds, for a set of two clutches or more, the motion with each clutch
+    of its set alone ON (``solo:`` states);  wearers : {motion: Wearer} of a multi-body case
+    (every motion ``MOTION@BODY``; {} for one body: ``model`` and ``areas`` serve all);
+    store : an EquilibriumStore (:mod:`kgarment.case.store`) or None;  coarser : () -> the
+    same case one subdivision level down (:class:`kgarment.case.levels.Coarser`) or None.
     """
 
     model: SimModel
     motions: dict[str, Motion]
     objective: str
-    params: BesoParams
     solver: SolverOptions
-    evolution_solver: SolverOptions | None
-    protected: np.ndarray | None
     areas: np.ndarray = field(repr=False)
-    filter_matrix: sp.csr_matrix = field(repr=False)
     adjacency: sp.csr_matrix = field(repr=False)
     ends: tuple[ClutchEnds, ...] = ()
     clutch_area: float = 0.0
     attached: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64), repr=False)
-    loop_faces: tuple[np.ndarray, ...] = field(default=(), repr=False)
     skin_start: bool = False
     activation: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     lockout: float = 0.0
     balance: float | dict[str, float] = 0.0
-    guard: float = 0.0
-    combine: str = "sum"
     wearers: dict[str, Wearer] = field(default_factory=dict, repr=False)
-    path_start: int = 0
-    path_frames: tuple = field(default=(), repr=False)
-    shares: dict[str, float] = field(default_factory=dict)
-    store: object = field(default=None, repr=False, compare=False)  # EquilibriumStore (design.store) or None
+    store: object = field(default=None, repr=False, compare=False)  # EquilibriumStore (case.store) or None
     coarser: Callable[[], Coarser | None] | None = field(default=None, repr=False, compare=False)
 
     @classmethod
-    def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, params: BesoParams,
-              solver: SolverOptions, evolution_solver: SolverOptions | None = None,
-              protected: np.ndarray | None = None, skin_start: bool = False,
-              activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0,
-              balance: float | dict[str, float] = 0.0, guard: float = 0.0, combine: str = "sum",
-              wearers: dict[str, Wearer] | None = None, path_start: int = 0,
-              path_frames: tuple = (),
-              shares: dict[str, float] | None = None) -> DesignSetup:
-        """Precompute areas, filter, adjacency and clutch ends for ``model`` (the garment on
-        the body it is cut from; ``wearers``: a multi-body design's, see the class doc)."""
+    def build(cls, model: SimModel, motions: dict[str, Motion], objective: str, solver: SolverOptions, *,
+              skin_start: bool = False, activation: dict[str, np.ndarray] | None = None, lockout: float = 0.0,
+              balance: float | dict[str, float] = 0.0, wearers: dict[str, Wearer] | None = None) -> Case:
+        """Precompute areas, adjacency and clutch ends for ``model`` (the garment on the body
+        it is cut from; ``wearers``: a multi-body case's, see the class doc)."""
         X, F = model.garment_rest, model.garment_faces
-        areas = triangle_areas(X, F)
-        if params.filter == "radius":
-            filt = radius_filter(X[F].mean(1), areas, params.radius)
-        else:
-            filt = one_ring_filter(F, areas, len(X))
-        ends = clutch_ends(model)
         clutch_area = sum(float(triangle_areas(c.vertices, c.faces).sum()) for c in model.clutches)
         attached = np.unique(np.concatenate([np.asarray(m.attach_faces) for m in motions.values()] or [[]]))
-        on_vertex = sp.csr_matrix((np.ones(F.size), (F.ravel(), np.repeat(np.arange(len(F)), 3))),
-                                  shape=(len(X), len(F)))
-        loops = tuple(np.unique(on_vertex[loop].indices) for loop in boundary_loops(F))
-        return cls(model, dict(motions), objective, params, solver, evolution_solver, protected, areas, filt,
-                   face_adjacency(F), tuple(ends), clutch_area if objective != "passive" else 0.0,
-                   attached.astype(np.int64), loops, skin_start,
-                   {m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()}, float(lockout),
-                   dict(balance) if isinstance(balance, dict) else float(balance), float(guard), combine,
-                   dict(wearers or {}), int(path_start), tuple(path_frames), dict(shares or {}))
+        return cls(model=model, motions=dict(motions), objective=objective, solver=solver,
+                   areas=triangle_areas(X, F), adjacency=face_adjacency(F), ends=tuple(clutch_ends(model)),
+                   clutch_area=clutch_area if objective != "passive" else 0.0, attached=attached.astype(np.int64),
+                   skin_start=skin_start,
+                   activation={m: np.asarray(g, dtype=np.float64) for m, g in (activation or {}).items()},
+                   lockout=float(lockout),
+                   balance=dict(balance) if isinstance(balance, dict) else float(balance),
+                   wearers=dict(wearers or {}))
 
     def model_of(self, motion: str) -> SimModel:
         """The SimModel ``motion`` is solved on (its wearer's garment)."""
@@ -154,7 +116,7 @@ class DesignSetup:
         options as there, options default ``self.solver``), each on its motion's wearer's model;
         through ``store`` where there is one (a solve done before is read back, not repeated);
         the fully reinforced garment's also through the machine's shared store
-        (:func:`kgarment.design.store.shared_store`: every run of the same problem needs them)."""
+        (:func:`kgarment.case.store.shared_store`: every run of the same problem needs them)."""
         options = self.solver if options is None else options
         shared = None
         if np.all(np.asarray(design) == 1.0):  # the fully reinforced garment: the same in every run
@@ -216,25 +178,6 @@ class DesignSetup:
         return [w * k + np.flatnonzero(together[j]) for w in range(len(self.all_end_faces) // max(k, 1))
                 for j in range(k)]
 
-    def structure(self, design: np.ndarray) -> dict:
-        """The paper's structural properties of ``design`` (m,): ``islands`` (parts of the
-        reinforcement), ``islands_with_clutches`` (parts when each clutch joins the parts its
-        ends sit on; the most over the wearers), ``clutch_ends_supported`` / ``clutch_ends``
-        (over every wearer) and, for a multi-body design, ``by_wearer`` {name: the same three}."""
-        faces = self.model.garment_faces
-        per = {}
-        for name, ends in self.wearer_end_faces().items():
-            sup = clutch_end_support(design, ends)
-            per[name] = {"islands_with_clutches": islands(faces, design, links=ends, adjacency=self.adjacency),
-                         "clutch_ends_supported": int(sum(a + b for a, b in sup)), "clutch_ends": 2 * len(sup)}
-        out = {"islands": islands(faces, design, adjacency=self.adjacency),
-               "islands_with_clutches": max(v["islands_with_clutches"] for v in per.values()),
-               "clutch_ends_supported": sum(v["clutch_ends_supported"] for v in per.values()),
-               "clutch_ends": sum(v["clutch_ends"] for v in per.values())}
-        if self.wearers:
-            out["by_wearer"] = per
-        return out
-
     def on_activation(self, motion: str) -> np.ndarray:
         """(K,) the activation of ``motion``'s ON state: its set, or every clutch."""
         g = self.activation.get(motion)
@@ -286,85 +229,50 @@ class DesignSetup:
             out.append((f"{SOLO}{self.model.clutches[k].name}", g))
         return out
 
-    def options(self, iteration: int) -> SolverOptions:
-        """The solver options of an iteration: ``solver`` for iteration 0 (the fully reinforced
-        garment, the reference of rho and of the objective), ``evolution_solver`` from
-        iteration 1 on, at the target area too (None: ``solver``; see
-        ``kgarment.problem.SolverSpec``)."""
-        if self.evolution_solver is not None and iteration > 0:
-            return self.evolution_solver
-        return self.solver
-
-    def judged(self, iteration: int, target: float) -> bool:
-        """Whether an iteration's objective counts towards convergence: iteration 0 and every
-        iteration at the target area A*; every iteration without an ``evolution_solver``."""
-        return self.evolution_solver is None or iteration == 0 or target == self.params.target_area
-
-
-def setup_from_problem(problem: Problem, body, garment: Garment, strips, purpose: str = "design",
-                       device: str = "cpu", objective: str | None = None, specs=None) -> DesignSetup:
-    """The setup of ``problem`` on a built body, garment (its attachments are held) and clutch
+def case_from_problem(problem: Problem, body, garment: Garment, strips, *, solver: str = "evaluate",
+                      early: bool = False, device: str = "cpu", objective: str | None = None,
+                      specs=None) -> Case:
+    """The case of ``problem`` on a built body, garment (its attachments are held) and clutch
     strips, for the problem's motions; with ``[body] phenotypes``, for every wearer's
-    (:mod:`kgarment.design.wearers`; ``specs``: the clutch specs the strips were built from,
+    (:mod:`kgarment.case.wearers`; ``specs``: the clutch specs the strips were built from,
     default the problem's).
 
-    purpose : "design" (a run: ``[solver] tol``, and ``evolution_tol`` while the target
-    shrinks) or "evaluate" (measuring designs: ``min(tol, EVALUATION_TOL)`` throughout;
-    :func:`kgarment.problem.solver_options`);  objective : overrides the problem's (the
-    reproduction evaluates every design ON and OFF).
+    solver : which of the problem's solver options its solves use
+    (:func:`kgarment.problem.solver_options`: "evaluate", ``min(tol, EVALUATION_TOL)``,
+    for measuring designs; "design", ``[solver] tol``, for a design run's iteration 0);
+    early : add the beginnings of motions that ``[design] early`` names (more states of a
+    design run's objective);  objective : overrides the problem's (the reproduction
+    evaluates every design ON and OFF).
     """
     if objective is not None and objective != problem.design.objective:
         problem = dataclasses.replace(problem, design=dataclasses.replace(problem.design, objective=objective))
     d = problem.design
     model = build_model(problem, garment, strips)
-    use = list(model.clutches)
-    if purpose == "design":
-        solver, evolution = solver_options(problem, "design", device), solver_options(problem, "evolution", device)
-    else:
-        solver, evolution = solver_options(problem, "evaluate", device), None
+    options = solver_options(problem, solver, device)
     motions = garment_motions(body, garment, problem.motions)
-    activation = activation_vectors(problem, [c.name for c in use])
-    wearers, shares = None, {}
+    activation = activation_vectors(problem, [c.name for c in model.clutches])
+    wearers = None
     if problem.body.phenotypes:
         motions, activation, wearers = wearer_motions(problem, body, garment, strips, model, motions, activation,
                                                       specs)
-    if purpose == "design" and d.early:  # the beginnings of motions: more states of the objective
-        from kgarment.design.frames import early_motions, early_name
+    if early and d.early:  # the beginnings of motions: more states of the objective
+        from kgarment.case.frames import early_motions, early_name
 
         motions = {**motions, **early_motions(problem)}
         activation = {**activation, **{early_name(m, t): activation[m] for m, t in d.early if m in activation}}
-    if purpose == "design" and (d.early or d.weights):
-        from kgarment.design.frames import objective_shares
-
-        shares = objective_shares(d.early, d.weights)
-    path_start = problem.solver.path_start if purpose == "design" and d.objective != "passive" else 0
-    path_frames: tuple = ()
-    if path_start:
-        from kgarment.design.frames import frame_motions
-
-        if wearers:
-            raise KgarmentError("[solver] path_start: the motion from rest is solved on one body; a multi-body "
-                                "design ([body] phenotypes) cannot use it")
-        path_frames = frame_motions(problem, list(problem.motions), problem.solver.path_frames, rest=True)
-    setup = DesignSetup.build(model, motions, d.objective, d.beso, solver,
-                              evolution_solver=evolution,
-                              protected=protected_faces(garment, use, d.protect_attachments, d.protect_clutch_margin),
-                              skin_start=problem.solver.skin_start, activation=activation, wearers=wearers,
-                              lockout=d.lockout if d.objective == "active" else 0.0,
-                              balance={m: d.balance_of(m) for m in motions} if d.objective == "active" else 0.0,
-                              guard=d.guard,
-                              combine=d.combine if d.objective == "active" else "sum",
-                              path_start=path_start, path_frames=path_frames, shares=shares)
-    if problem.garment.subdivision > 0 and not wearers and \
-            model.n_garment > constants.NESTED_VERTICES:
-        setup = dataclasses.replace(setup, coarser=functools.cache(
-            functools.partial(_coarser, problem, body, setup.model, purpose, device, objective)))
-    return setup
+    active = d.objective == "active"
+    case = Case.build(model, motions, d.objective, options, skin_start=problem.solver.skin_start,
+                      activation=activation, wearers=wearers, lockout=d.lockout if active else 0.0,
+                      balance={m: d.balance_of(m) for m in motions} if active else 0.0)
+    if problem.garment.subdivision > 0 and not wearers and model.n_garment > constants.NESTED_VERTICES:
+        case = dataclasses.replace(case, coarser=functools.cache(functools.partial(
+            _coarser, problem, body, case.model, solver=solver, early=early, device=device, objective=objective)))
+    return case
 
 
-def _coarser(problem: Problem, body, model: SimModel, purpose: str, device: str,
+def _coarser(problem: Problem, body, model: SimModel, *, solver: str, early: bool, device: str,
              objective: str | None) -> Coarser | None:
-    """``problem``'s setup one subdivision level below its garment's (built on ``body``; its
+    """``problem``'s case one subdivision level below its garment's (built on ``body``; its
     own coarser level with it), and the map up to ``model``'s garment; None where the coarse
     garment cannot carry the clutches (logged)."""
     level = problem.garment.subdivision - 1
@@ -375,8 +283,9 @@ def _coarser(problem: Problem, body, model: SimModel, purpose: str, device: str,
     except KgarmentError as exc:
         log.info("no coarser start at subdivision %d: %s", level, exc)
         return None
-    setup = setup_from_problem(low, body, garment, strips, purpose, device, objective)
-    return Coarser(level, setup, vertex_map(garment.faces, garment.n_vertices, model.n_faces))
+    case = case_from_problem(low, body, garment, strips, solver=solver, early=early, device=device,
+                             objective=objective)
+    return Coarser(level, case, vertex_map(garment.faces, garment.n_vertices, model.n_faces))
 
 
 def activation_vectors(problem: Problem, names: list[str]) -> dict[str, np.ndarray]:

@@ -1,6 +1,6 @@
 """The one design evaluator: rho, stored energies and structural metrics of any design.
 
-:class:`Evaluator` holds a :class:`~kgarment.design.setup.DesignSetup` built for
+:class:`Evaluator` holds a :class:`~kgarment.case.Case` built for
 evaluation (solver tolerance ``min(tol, EVALUATION_TOL)``), solves the fully reinforced
 garment once per state (the reference of rho, method.md section 7) and evaluates designs
 of that garment.  ``kgarment evaluate``, ``kgarment simulate --design``'s report, the
@@ -13,11 +13,11 @@ run's first iteration) and the fully reinforced garment's equilibrium (where a d
 warm-started path begins).  On a subdivided garment of more than
 :data:`~kgarment.constants.NESTED_VERTICES` vertices both starts are taken one subdivision
 level down, where the cloth's slide round the body costs a fraction of the Newton
-iterations, and mapped up (nested iteration, :mod:`kgarment.design.levels`): the garment as
+iterations, and mapped up (nested iteration, :mod:`kgarment.case.levels`): the garment as
 put on is the state's equilibrium there from its own put-on start (:func:`put_on`), the
 start along the run's path the design's equilibrium there from that level's start along
 the path (:meth:`Evaluator.from_full`); the load states start from theirs
-(:func:`kgarment.design.loads.coarse_starts`).  Measured on the three-motion shirt's design
+(:func:`kgarment.evaluate.loads.coarse_starts`).  Measured on the three-motion shirt's design
 at subdivision 2 (2026-11-29, coarse-to-fine, 2 workers): the run's final evaluation took
 18.1 minutes with its renders, everything solved cold, against 50.6 (``kgarment evaluate``
 13.9 minutes with the fully reinforced garment's solves in the machine's store), rho ON
@@ -34,7 +34,7 @@ sliding, and the rescue then started again from the start; it now goes on from w
 ran out of iterations, and converges them itself); a clutched state that has not converged
 then either is solved by :func:`activation_continuation`.  Equilibria found otherwise --
 the end of the motion solved from rest (``kgarment evaluate --path``,
-:func:`kgarment.design.path.path_forces`), the one a wearer reaches -- compete with the two starts' (``known``): the lowest is kept
+:func:`kgarment.evaluate.path.path_forces`), the one a wearer reaches -- compete with the two starts' (``known``): the lowest is kept
 and marked ``from_path``.  Measured on the two-motion sleeve at subdivision 1 (its final
 design, 2026-11-26): in arm flexion ON the two starts ended at 24.9 J, the motion from rest
 at 6.8 J (rho ON 0.99 against 0.02, below its rho OFF 0.03).  Measured on a tiny sleeve design
@@ -52,17 +52,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from kgarment.design.continuation import activation_continuation
-from kgarment.design.levels import prolong, put_on, restrict, states_down
-from kgarment.design.loads import LoadReport, clutch_loads
-from kgarment.design.metrics import Stored, relative_energy_density
-from kgarment.design.setup import DesignSetup, StateKey, setup_from_problem
-from kgarment.design.store import design_digest, state_digest
+from kgarment.case.continuation import activation_continuation
+from kgarment.case.levels import prolong, put_on, restrict, states_down
+from kgarment.case.setup import Case, case_from_problem
+from kgarment.case.starts import (
+    Equilibrium,
+    pick_equilibrium,
+    solve_two_starts,
+    with_known,
+)
+from kgarment.case.states import StateKey
+from kgarment.case.store import design_digest, state_digest
 from kgarment.errors import Cancelled, KgarmentError, unknown
+from kgarment.evaluate.loads import LoadReport, clutch_loads
+from kgarment.evaluate.metrics import Stored, relative_energy_density, structure
 from kgarment.problem import Problem, build_body, build_clutches, build_garment
 from kgarment.sim import SimState, StateResult
 
-MULTISTABLE = 0.01  # two equilibria whose total energies differ by more than this (relative) are reported
 KEPT = 64  # design equilibria an Evaluator keeps (the most recently used; :meth:`Evaluator.solve_design`)
 
 
@@ -148,74 +154,19 @@ class DesignEvaluation:
                 **(self.loads.to_json() if self.loads is not None else {})}
 
 
-@dataclass(frozen=True)
-class Equilibrium:
-    """The equilibrium kept for one state, and the other start's when it differs.
-
-    result : the kept StateResult (converged before unconverged, then the lower total
-    energy);  other : the other converged solution when the two store energies more than
-    :data:`MULTISTABLE` apart (relative), else None.
-    """
-
-    result: StateResult
-    other: StateResult | None = None
-    from_path: bool = False
-
-
-def with_known(e: Equilibrium, known: StateResult | None) -> Equilibrium:
-    """``e`` against an equilibrium found otherwise (the motion from rest; None: none):
-    ``known`` replaces it (``from_path``, ``e``'s reported as the other) where it is converged
-    and lower by more than :data:`MULTISTABLE`; closer ones leave ``e`` as it is, so the
-    numbers do not change with ``--path`` for round-off."""
-    if known is None or not known.converged:
-        return e
-    if not e.result.converged:
-        return Equilibrium(known, from_path=True)
-    p = pick_equilibrium(e.result, known)
-    if p.result is known and p.other is not None:
-        return Equilibrium(known, e.result, from_path=True)
-    return e
-
-
-def pick_equilibrium(a: StateResult, b: StateResult) -> Equilibrium:
-    """The better of two solutions of one state (``a`` on ties) and whether they differ."""
-    if a.converged != b.converged:
-        return Equilibrium(a if a.converged else b)
-    if not a.converged:
-        return Equilibrium(a if a.convergence.residual <= b.convergence.residual else b)
-    keep, other = (a, b) if a.total_energy <= b.total_energy else (b, a)
-    apart = abs(keep.total_energy - other.total_energy) > MULTISTABLE * max(abs(keep.total_energy), 1e-300)
-    return Equilibrium(keep, other if apart else None)
-
-
-def solve_two_starts(setup: DesignSetup, design: np.ndarray, states: list[SimState], starts: list,
-                     options=None) -> tuple[list[StateResult], list[StateResult]]:
-    """``states`` solved for ``design`` (m,) from ``starts`` (per state (N, 3) positions or
-    None) and from the garment as put on (the skin-tight garment, or on a subdivided garment
-    its equilibrium one level down, :func:`kgarment.design.levels.put_on`), in one batch
-    (the workers share the 2n solves instead of waiting twice for the slowest); returns
-    (from ``starts``, as put on), both under the states' own names.  ``options``: the setup's
-    solver options unless given."""
-    n = len(states)
-    worn = put_on(setup, design, list(states))
-    skin = [dataclasses.replace(s, name=f"{s.name}@{'skin-tight' if w is None else 'put-on'}")
-            for s, w in zip(states, worn)]
-    both = setup.solve(design, list(states) + skin, warm_start=list(starts) + worn, options=options)
-    return both[:n], [dataclasses.replace(r, name=s.name) for r, s in zip(both[n:], states)]
-
-
 class Evaluator:
     """Evaluates designs of one garment (see the module docstring).
 
-    setup : a DesignSetup built with ``purpose="evaluate"`` (``from_problem`` builds one);
+    case : the Case it measures designs of (:func:`kgarment.case.case_from_problem`'s,
+    with the evaluation's solver options; ``from_problem`` builds one);
     the fully reinforced equilibria are solved on first need and kept per state, and the
     last :data:`KEPT` design equilibria from the two starts are kept too (by design and
     state content: ``kgarment evaluate --path`` solves the target's equilibria for the
     force over the motion and evaluates the same design there next).
     """
 
-    def __init__(self, setup: DesignSetup, store=None):
-        self.setup = setup if store is None else dataclasses.replace(setup, store=store)
+    def __init__(self, case: Case, store=None):
+        self.case = case if store is None else dataclasses.replace(case, store=store)
         self._reference: dict[StateKey, StateResult] = {}
         self._kept: OrderedDict[tuple, Equilibrium] = OrderedDict()
 
@@ -225,80 +176,80 @@ class Evaluator:
         """An evaluator of ``problem`` (body, garment and clutches built unless given; the
         garment's ``attached`` faces are held); ``objective`` overrides the problem's
         (``"active"``: every design ON and OFF); ``store``: an EquilibriumStore to keep its
-        equilibria in and take them from (``kgarment.design.store``)."""
+        equilibria in and take them from (``kgarment.case.store``)."""
         body = build_body(problem) if body is None else body
         garment = build_garment(problem, body) if garment is None else garment
         strips = build_clutches(problem, body, garment) if strips is None else strips
-        return cls(setup_from_problem(problem, body, garment, strips, "evaluate", device, objective), store)
+        return cls(case_from_problem(problem, body, garment, strips, device=device, objective=objective), store)
 
     @property
     def motions(self) -> list[str]:
-        return list(self.setup.motions)
+        return list(self.case.motions)
 
     @property
     def n_faces(self) -> int:
-        return self.setup.model.n_faces
+        return self.case.model.n_faces
 
     def motion_names(self, motions=None) -> list[str]:
-        """``motions`` (default: all of the setup's), each checked to be one of them; in a
+        """``motions`` (default: all of the case's), each checked to be one of them; in a
         multi-body design a problem's motion name stands for it on every wearer."""
         out = []
-        for m in motions or self.setup.motions:
-            if m in self.setup.motions:
+        for m in motions or self.case.motions:
+            if m in self.case.motions:
                 out.append(m)
                 continue
-            on_wearers = [k for k, w in self.setup.wearers.items() if w.motion == m]
+            on_wearers = [k for k, w in self.case.wearers.items() if w.motion == m]
             if not on_wearers:
-                raise unknown("motion", m, self.setup.motions)
+                raise unknown("motion", m, self.case.motions)
             out += on_wearers
         return list(dict.fromkeys(out))
 
     def keyed(self, motions=None) -> list[tuple[StateKey, SimState]]:
         """The states of the objective for ``motions`` (default: all)."""
-        return self.setup.states(self.motion_names(motions))
+        return self.case.states(self.motion_names(motions))
 
     def activation_states(self, activation, motions=None, label: str = "") -> list[tuple[StateKey, SimState]]:
         """States of ``motions`` (default: all) under one clutch activation (K,) in [0, 1],
         keyed (motion, ``label``) (default: the values joined by commas)."""
         g = tuple(float(a) for a in activation)
-        if len(g) != self.setup.n_clutches:
-            raise KgarmentError(f"clutch activation has {len(g)} values for {self.setup.n_clutches} clutches")
+        if len(g) != self.case.n_clutches:
+            raise KgarmentError(f"clutch activation has {len(g)} values for {self.case.n_clutches} clutches")
         label = label or ",".join(f"{a:g}" for a in g)
-        return [((m, label), SimState.create(self.setup.motions[m], g, name=f"{m}[{label}]"))
+        return [((m, label), SimState.create(self.case.motions[m], g, name=f"{m}[{label}]"))
                 for m in self.motion_names(motions)]
 
     @functools.cached_property
     def coarser(self) -> Evaluator | None:
-        """The evaluator of the same problem one subdivision level down (the setup's
+        """The evaluator of the same problem one subdivision level down (the case's
         ``coarser``; the same store), or None: its equilibria start this one's (nested
-        iteration, :mod:`kgarment.design.levels`)."""
-        c = self.setup.coarser() if self.setup.coarser is not None else None
-        return None if c is None else Evaluator(c.setup, self.setup.store)
+        iteration, :mod:`kgarment.case.levels`)."""
+        c = self.case.coarser() if self.case.coarser is not None else None
+        return None if c is None else Evaluator(c.case, self.case.store)
 
     def down(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]],
              tag: str = "") -> tuple[list[int], np.ndarray, list[tuple[StateKey, SimState]]]:
         """``keyed`` states one level down: (the indices of those the coarser evaluator has,
         ``design`` (m,) restricted to its garment, those states keyed there the same way).
         Only with a :attr:`coarser` evaluator."""
-        idx, down = states_down(self.setup.coarser(), [s for _, s in keyed], tag)
+        idx, down = states_down(self.case.coarser(), [s for _, s in keyed], tag)
         return idx, restrict(design, self.coarser.n_faces), [(keyed[i][0], s) for i, s in zip(idx, down)]
 
     def up(self, x: np.ndarray) -> np.ndarray:
         """An equilibrium (N_coarse, 3) of the :attr:`coarser` evaluator's garment as a start
         (N, 3) here."""
-        return prolong(self.setup, self.setup.coarser(), x)
+        return prolong(self.case, self.case.coarser(), x)
 
     def from_full(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]]) -> list[np.ndarray]:
         """Per state the start of ``design``'s solve along a design run's path, which begins at
         the fully reinforced garment: its equilibrium (:meth:`reference`); on a subdivided
         garment the design's equilibrium one level down reached the same way, prolongated
-        (nested iteration, :mod:`kgarment.design.levels`; a state the level below lacks: the
+        (nested iteration, :mod:`kgarment.case.levels`; a state the level below lacks: the
         reference)."""
         starts: list = [None] * len(keyed)
         if self.coarser is not None:
             idx, d, low = self.down(design, keyed, "@from-full")
             if idx:
-                solved = self.coarser.setup.solve(d, [s for _, s in low], warm_start=self.coarser.from_full(d, low))
+                solved = self.coarser.case.solve(d, [s for _, s in low], warm_start=self.coarser.from_full(d, low))
                 for i, r in zip(idx, solved):
                     starts[i] = self.up(r.x)
         rest = [i for i, x in enumerate(starts) if x is None]
@@ -320,14 +271,14 @@ class Evaluator:
         if todo:  # with the OFF states the clutched ones start from (one state at a time: the studio)
             known = set(self._reference) | {k for k, _ in todo}
             offs = {(k[0], "off") for k, s in todo if s.clutched} - known
-            todo += [(k, s) for k, s in self.setup.states() if k in offs]
+            todo += [(k, s) for k, s in self.case.states() if k in offs]
             states = [s for _, s in todo]
-            done = self.setup.solve(full, states, warm_start=put_on(self.setup, full, states))
+            done = self.case.solve(full, states, warm_start=put_on(self.case, full, states))
             self._reference.update({k: r for (k, _), r in zip(todo, done)})
             off = {k[0]: self._reference[k] for k in self._reference if k[1] == "off" and self._reference[k].converged}
             again = [(k, s) for k, s in todo if s.clutched and k[0] in off]
             if again:
-                second = self.setup.solve(full, [s for _, s in again], warm_start=[off[k[0]].x for k, _ in again])
+                second = self.case.solve(full, [s for _, s in again], warm_start=[off[k[0]].x for k, _ in again])
                 for (k, _), r in zip(again, second):
                     self._reference[k] = with_known(Equilibrium(self._reference[k]), r).result
         return [self._reference[k] for k, _ in keyed]
@@ -362,20 +313,20 @@ class Evaluator:
         if np.all(design > 0.5):
             return [Equilibrium(r) for r in self.reference(keyed)]
         states = [s for _, s in keyed]
-        setup = self.setup
+        case = self.case
         starts = self.from_full(design, keyed) if starts is None else list(starts)
-        from_starts, cold = solve_two_starts(setup, design, states, starts)
+        from_starts, cold = solve_two_starts(case, design, states, starts)
         out = [pick_equilibrium(a, b) for a, b in zip(cold, from_starts)]
         slow = [i for i, e in enumerate(out) if not e.result.converged]
         if slow:  # converged from neither start: on from the nearer end, once (a slow slide, measured)
-            again = setup.go_on(design, [states[i] for i in slow], [out[i].result for i in slow])
+            again = case.go_on(design, [states[i] for i in slow], [out[i].result for i in slow])
             for i, r in zip(slow, again):
                 if r.converged or r.convergence.residual < out[i].result.convergence.residual:
                     out[i] = Equilibrium(r)
         todo = [i for i, e in enumerate(out) if not e.result.converged and states[i].clutched]
         if todo:  # the continuation's first step is the motion's OFF state from skin-tight: solved already
             off = {s.motion.name: r for s, r in zip(states, cold) if not s.clutched}
-            redone = activation_continuation(setup, design, [states[i] for i in todo],
+            redone = activation_continuation(case, design, [states[i] for i in todo],
                                              [off.get(states[i].motion.name) for i in todo])
             for i, r in zip(todo, redone):
                 if r.converged or r.convergence.residual < out[i].result.convergence.residual:
@@ -397,9 +348,9 @@ class Evaluator:
         with ``report`` or ``cancelled`` (the studio) one state at a time instead:
         ``report(text)`` before each solve, ``cancelled()`` checked between solves (raises
         :class:`Cancelled`).  The numbers are the same either way.  ``loads``: also the
-        per-clutch load report (:func:`kgarment.design.loads.clutch_loads`; clutched
+        per-clutch load report (:func:`kgarment.evaluate.loads.clutch_loads`; clutched
         objectives only).  ``known``: {(motion, state): StateResult} equilibria of this design
-        found otherwise (the last frames of :func:`kgarment.design.path.path_forces`), kept
+        found otherwise (the last frames of :func:`kgarment.evaluate.path.path_forces`), kept
         where they are lower than the two starts' (module docstring).
         """
         design = np.asarray(design, dtype=np.float64)
@@ -417,9 +368,9 @@ class Evaluator:
 
     def with_loads(self, ev: DesignEvaluation, design: np.ndarray) -> DesignEvaluation:
         """``ev``, this evaluator's evaluation of ``design`` (m,), with the per-clutch load
-        report (:func:`kgarment.design.loads.clutch_loads`, from its ON and OFF equilibria;
+        report (:func:`kgarment.evaluate.loads.clutch_loads`, from its ON and OFF equilibria;
         clutched objectives only, else ``ev`` as it is)."""
-        if not self.setup.n_clutches or self.setup.objective == "passive":
+        if not self.case.n_clutches or self.case.objective == "passive":
             return ev
         known = {s.key: s.result for s in ev.states if s.state in ("on", "off")}
         motions = list(dict.fromkeys(s.motion for s in ev.states))
@@ -439,13 +390,13 @@ class Evaluator:
         return full, self.solve_design(design, [keyed_state])[0]
 
     def _summarise(self, design, keyed, pairs) -> DesignEvaluation:
-        setup = self.setup
-        clutched = setup.objective != "passive"
+        case = self.case
+        clutched = case.objective != "passive"
         solid = design > 0.5
         rows = []
         for ((motion, state), _), (rf, eq) in zip(keyed, pairs):
             sf, sd = Stored.of(rf, clutched), Stored.of(eq.result, clutched)
-            areas, c_area = setup.areas_of(motion), setup.clutch_area_of(motion)
+            areas, c_area = case.areas_of(motion), case.clutch_area_of(motion)
             rho = relative_energy_density(design, areas, sd, sf, c_area)
             other = None if eq.other is None else \
                 relative_energy_density(design, areas, Stored.of(eq.other, clutched), sf, c_area)
@@ -453,8 +404,8 @@ class Evaluator:
                 motion, state, rho, float(sd.face_energy[solid].sum() + sd.clutch_energy),
                 float(sf.face_energy.sum() + sf.clutch_energy), bool(rf.converged and eq.result.converged), other,
                 eq.from_path, eq.result, rf))
-        shape = setup.structure(design)
+        shape = structure(case, design)
         return DesignEvaluation(
-            solid, tuple(rows), float(setup.areas[solid].sum() / setup.areas.sum()), shape["islands"],
+            solid, tuple(rows), float(case.areas[solid].sum() / case.areas.sum()), shape["islands"],
             shape["islands_with_clutches"], shape["clutch_ends_supported"], shape["clutch_ends"],
             by_wearer=shape.get("by_wearer"))

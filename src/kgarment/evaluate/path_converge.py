@@ -1,7 +1,7 @@
 """The motion from rest solved until its frame count no longer matters (``evaluate --path K --converge``).
 
 With skin friction the state at the end of a motion depends on the path taken, and the
-path is solved in frames (:func:`kgarment.design.path.path_forces`): a frame holds the
+path is solved in frames (:func:`kgarment.evaluate.path.path_forces`): a frame holds the
 garment where the frame before left it, so a coarse step can carry a held equilibrium past
 the point where, moved on more gently, the garment slips.  Measured on the selective
 sleeve's design at 20% of the area (docs/notes/selective.md, "Frames of the motion from
@@ -24,7 +24,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from kgarment.constants import PATH_CONVERGE_TOL, PATH_FRAMES, PATH_MAX_FRAMES
-from kgarment.design.path import STATES, PathReport, path_forces
+from kgarment.evaluate.path import STATES, PathReport, path_forces
 
 log = logging.getLogger(__name__)
 
@@ -91,7 +91,7 @@ def converged_path(evaluator, design, problem, motions=None, frames: int = PATH_
     """The path of ``design`` (m,) over each motion of ``motions`` (default: the
     evaluator's) at ``frames``, 2 ``frames``, ... frames until two counts in a row agree
     within ``tol`` (module doc) or the next count would pass ``max_frames``; arguments as
-    :func:`kgarment.design.path.path_forces`.  Returns (the report of every motion's finest
+    :func:`kgarment.evaluate.path.path_forces`.  Returns (the report of every motion's finest
     path, one FrameCheck per motion)."""
     motions = evaluator.motion_names(motions)
     if frames < 1 or max_frames < 2 * frames:

@@ -21,8 +21,8 @@ it resists it with at least :data:`PLAN_LOCK` of that motion's all-ON resistance
 paper's two-motion sleeve switches the opposing clutch off "to prevent full arm-locking").
 
 Equilibria come from the one design evaluator (ON and all OFF from its two starts,
-:func:`kgarment.design.loads.on_off_equilibria`, as the clutch loads; a set starts from the
-nearer of the ON and OFF equilibria, :func:`kgarment.design.loads.activation_equilibria`),
+:func:`kgarment.evaluate.loads.on_off_equilibria`, as the clutch loads; a set starts from the
+nearer of the ON and OFF equilibria, :func:`kgarment.evaluate.loads.activation_equilibria`),
 so the ON and all-OFF energies are those of ``kgarment evaluate``.  A motion's own
 activation set is its ON state; another motion's set is solved like the evaluator's
 ``lock:`` states (two starts, the lower kept): on the default-resolution selective sleeve
@@ -31,7 +31,7 @@ settled at 0.79 of the all-ON resistance where the evaluator's lock row kept an
 equilibrium at rho 0.07 (its other start's at 0.96): two answers for one state.  With
 ``known`` (the ends of the motion from rest, ``kgarment plan --path K`` and the
 reproduction) they compete with the two starts by the evaluator's rule
-(:func:`kgarment.design.evaluate.with_known`), as in ``kgarment evaluate --path K``; every
+(:func:`kgarment.case.starts.with_known`), as in ``kgarment evaluate --path K``; every
 set then starts from the nearer of the equilibria kept.
 """
 
@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kgarment.constants import MIN_GAIN, PLAN_EXHAUSTIVE, PLAN_KEEP, PLAN_LOCK
-from kgarment.design.loads import activation_equilibria, on_off_equilibria
+from kgarment.evaluate.loads import activation_equilibria, on_off_equilibria
 from kgarment.sim import clutch_tensions
 
 
@@ -152,11 +152,11 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
     every subset of the clutches when there are at most ``exhaustive_up_to`` of them,
     greedy sets otherwise.  ``known``: {(motion, "on" | "off"): StateResult} equilibria
     found otherwise (the ends of the motion from rest, ``PathReport.ends``), kept instead of
-    the two starts' by :func:`kgarment.design.evaluate.with_known`."""
-    from kgarment.design.evaluate import Equilibrium, with_known
+    the two starts' by :func:`kgarment.case.starts.with_known`."""
+    from kgarment.case.starts import Equilibrium, with_known
 
-    setup = evaluator.setup
-    names = tuple(c.name for c in setup.model.clutches)
+    case = evaluator.case
+    names = tuple(c.name for c in case.model.clutches)
     K = len(names)
     motions = evaluator.motion_names(motions)
     design = np.asarray(design, dtype=np.float64)
@@ -170,13 +170,13 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
     states = dict(keyed)
     full = tuple(range(K))
     for m in motions:  # the motion's ON set (all clutches unless it has its own) is the evaluation's ON state
-        on = setup.on_activation(m)
+        on = case.on_activation(m)
         if np.all((on == 0.0) | (on == 1.0)) and on.any():
             label = _label(names[i] for i in np.flatnonzero(on))
             known[(m, label)] = known[(m, "on")]
             states[(m, label)] = states[(m, "on")]
 
-    own = {m: setup.on_activation(m) for m in motions if not np.all(setup.on_activation(m) == 1.0)}  # activation sets
+    own = {m: case.on_activation(m) for m in motions if not np.all(case.on_activation(m) == 1.0)}  # activation sets
     designed_sets = {tuple(g) for g in own.values()}
 
     def solve(sets, ms):
@@ -189,7 +189,7 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
                     continue
                 # another motion's designed set: solved like the evaluator's lock states (its
                 # two starts, the lower kept), so the table says what evaluate's lock rows say
-                lock = tuple(g) in designed_sets and not np.array_equal(g, setup.on_activation(key[0]))
+                lock = tuple(g) in designed_sets and not np.array_equal(g, case.on_activation(key[0]))
                 (locks if lock else keyed).append((key, st))
         if locks:
             known.update(zip([k for k, _ in locks], evaluator.equilibria(design, locks)))
@@ -225,7 +225,7 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
         for idx in chosen:
             label = _label(names[i] for i in idx)
             r = known[(m, label)]
-            t = clutch_tensions(setup.model_of(m), design, states[(m, label)], r.x, setup.solver)
+            t = clutch_tensions(case.model_of(m), design, states[(m, label)], r.x, case.solver)
             res = r.total_energy - off.total_energy
             frac = res / gain if gain > MIN_GAIN * abs(off.total_energy) else float("nan")
             results.append(SetResult(m, tuple(names[i] for i in idx), float(r.total_energy), float(res), float(frac),

@@ -1,7 +1,7 @@
 """One garment for several bodies at once: a multi-body design (``[body] phenotypes``).
 
 A size range gets one cut pattern: the garment is cut from the first wearer's body and
-carried face for face to the others (:mod:`kgarment.design.transfer`: Anny keeps its mesh
+carried face for face to the others (:mod:`kgarment.case.transfer`: Anny keeps its mesh
 topology for every phenotype, so the same faces, attachment rings and clutch spots exist on
 every body).  Each wearer's motions are further states of the one design, named
 ``MOTION@BODY`` (``arms_forward@S``); every one is normalised by its own fully reinforced
@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kgarment.case.transfer import clutches_on, garment_on
 from kgarment.constants import BODY_SEP
-from kgarment.design.transfer import clutches_on, garment_on
 from kgarment.garment.topology import triangle_areas
 from kgarment.problem import Problem, build_body, build_model, clutch_specs
 from kgarment.sim import SimModel, garment_motions
@@ -42,7 +42,7 @@ class ClutchEnds:
 class Wearer:
     """One body of a multi-body design (``[body] phenotypes``) for one of its motions.
 
-    name : the wearer's name;  motion : the problem's motion name (the setup's is
+    name : the wearer's name;  motion : the problem's motion name (the case's is
     ``MOTION@NAME``);  model : SimModel of the garment on this body (same faces, this body's
     rest shape, the clutches at the same spots);  areas : (m,) rest face areas on this body,
     m^2;  clutch_area : total rest area of its clutches, m^2 (0 for the passive objective);
@@ -94,7 +94,7 @@ def wearer_problem(problem: Problem, name: str) -> Problem:
 
 
 def wearer_motions(problem: Problem, body, garment, strips, model, motions: dict, activation: dict, specs=None):
-    """The motions, activations and :class:`~kgarment.design.setup.Wearer` of every wearer.
+    """The motions, activations and :class:`~kgarment.case.wearers.Wearer` of every wearer.
 
     body, garment, strips, model : the first wearer's (the garment is cut from it);
     motions : {motion: Motion} and activation : {motion: (K,)} on that body.  Returns

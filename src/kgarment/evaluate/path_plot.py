@@ -1,11 +1,11 @@
-"""Plots of the force over the motion (:class:`kgarment.design.path.PathReport`): clutch
+"""Plots of the force over the motion (:class:`kgarment.evaluate.path.PathReport`): clutch
 tension against motion progress, like the paper's force figure."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from kgarment.design.path import PathFrame, PathReport
+from kgarment.evaluate.path import PathFrame, PathReport
 from kgarment.io import save_figure
 
 
