@@ -29,6 +29,7 @@ from kgarment.optimize.loop import (
     solve,
 )
 from kgarment.optimize.objective import objective_terms, objective_value
+from kgarment.problem import BesoParams
 
 
 def test_objective_terms_sum_to_the_objective():
@@ -103,8 +104,13 @@ def test_the_gain_column_is_the_term_without_the_lockout_penalty():
     lockout * (LOCK - OFF) / reference ON, from the row's own energies."""
     from test_design_activation import tube_setup
 
+    from kgarment.optimize.setup import BesoSetup, DesignSetup
+
+    def designed(case):
+        return DesignSetup(case, BesoSetup.build(case, BesoParams()))
+
     sets = {"pull": np.array([1.0, 0.0]), "twist": np.array([0.0, 1.0])}
-    setup = tube_setup(sets, lockout=0.7)
+    setup = designed(tube_setup(sets, lockout=0.7))
     st = initial_state(setup)
     solved = solve(setup, st)
     row = metrics_row(setup, st, solved, solved.energy, solved.stored)
@@ -112,7 +118,7 @@ def test_the_gain_column_is_the_term_without_the_lockout_penalty():
         on, off, lock = (row[f"energy[{m}:{s}]"] for s in ("on", "off", f"lock:{other}"))
         assert row[f"gain[{m}]"] == pytest.approx((on - off) / on)
         assert row[f"term[{m}]"] == pytest.approx((on - off - 0.7 * (lock - off)) / on)
-    plain = tube_setup(sets)
+    plain = designed(tube_setup(sets))
     assert not any(k.startswith("gain[") for k in metrics_row(plain, st, solve(plain, st), solved.energy,
                                                                solved.stored))
 
@@ -123,7 +129,7 @@ def test_a_rejected_step_is_made_again_from_the_last_accepted_design(tmp_path):
     step removed kept; the rejected iteration is never the reported design; the guarded faces
     survive a checkpoint."""
     setup, _ = _sheet_setup(objective="passive", max_iterations=20)
-    setup = dataclasses.replace(setup, guard=0.5)
+    setup = dataclasses.replace(setup, beso=dataclasses.replace(setup.beso, guard=0.5))
     st = initial_state(setup)
     for _ in range(3):
         st = iterate(setup, st)
@@ -153,6 +159,6 @@ def test_a_rejected_step_is_made_again_from_the_last_accepted_design(tmp_path):
     back = load_checkpoint(tmp_path)
     np.testing.assert_array_equal(back.guarded, nxt.guarded)
     np.testing.assert_array_equal(back.accepted_alpha["pull"], nxt.accepted_alpha["pull"])
-    rows = [dict(r, area=setup.params.target_area) for r in nxt.metrics]
+    rows = [dict(r, area=setup.beso.params.target_area) for r in nxt.metrics]
     rows[-1]["objective"] = 10.0  # even with the best objective, a rejected step is not reported
-    assert best_iteration(rows, setup.params.target_area, setup.params.er) != rows[-1]["iteration"]
+    assert best_iteration(rows, setup.beso.params.target_area, setup.beso.params.er) != rows[-1]["iteration"]

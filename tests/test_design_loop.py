@@ -104,7 +104,7 @@ def test_evolution_tolerance_after_iteration_0():
     import math
 
     fine, _ = _sheet_setup(max_iterations=40)
-    fine = dataclasses.replace(fine, solver=dataclasses.replace(fine.case.solver, tol=1e-4))
+    fine = dataclasses.replace(fine, case=dataclasses.replace(fine.case, solver=dataclasses.replace(fine.case.solver, tol=1e-4)))
     ref = run_loop(fine, initial_state(fine))
     setup, _ = _sheet_setup(max_iterations=40)
     setup = dataclasses.replace(setup, case=dataclasses.replace(setup.case, solver=fine.case.solver),

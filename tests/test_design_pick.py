@@ -95,7 +95,7 @@ def test_the_reported_iteration_is_the_best_objective_the_evaluator_reproduces()
 
     from kgarment.design.reported import CANDIDATES, select_reported
 
-    setup = SimpleNamespace(objective="active", lockout=0.0, combine="sum")
+    setup = SimpleNamespace(case=SimpleNamespace(objective="active", lockout=0.0), beso=SimpleNamespace(combine="sum"))
     rows = _rows({3: 0.50, 4: 0.49, 5: 0.48, 6: 0.47, 7: 0.46, 8: 0.45})
     asked = []
 
