@@ -10,6 +10,7 @@ import socket
 import subprocess
 import sys
 import time
+import urllib.error
 import urllib.request
 
 import numpy as np
@@ -92,16 +93,17 @@ def test_bad_input_is_a_message_and_changes_nothing(studio, tmp_path):
     assert "no optimisation" in last(studio)[0]
     studio.guarded(studio.edit.add_clutch_at_landmarks, "upper_back", "chest")
     assert "from the garment" in last(studio)[0]
-    (tmp_path / "bad.toml").write_text("[garment\n")
-    studio.guarded(studio.open, str(tmp_path / "bad.toml"))
+    (tmp_path / "runs").mkdir()  # the page reads under the studio's folders (--runs here)
+    (tmp_path / "runs" / "bad.toml").write_text("[garment\n")
+    studio.guarded(studio.open, str(tmp_path / "runs" / "bad.toml"))
     assert "unsaved changes" in last(studio)[0]  # first press: a warning
-    studio.guarded(studio.open, str(tmp_path / "bad.toml"))
+    studio.guarded(studio.open, str(tmp_path / "runs" / "bad.toml"))
     assert "not valid TOML" in last(studio)[0] and last(studio)[1]
     other = dataclasses.replace(problem(), garment=dataclasses.replace(problem().garment, subdivision=1))
-    fake_run(tmp_path / "run1", other, np.ones((2, 2252), bool))
-    studio.guarded(studio.optimiser.open, str(tmp_path / "run1"))
+    fake_run(tmp_path / "runs" / "run1", other, np.ones((2, 2252), bool))
+    studio.guarded(studio.optimiser.open, str(tmp_path / "runs" / "run1"))
     assert "subdivision 1" in last(studio)[0] and studio.optimiser.run is None
-    studio.guarded(studio.sims.load_b, str(tmp_path / "run1"))
+    studio.guarded(studio.sims.load_b, str(tmp_path / "runs" / "run1"))
     assert "subdivision 1" in last(studio)[0] and studio.sims.design_b is None
     assert studio.state is st and st.revision == rev and st.dirty
 
@@ -292,10 +294,13 @@ def test_cli_serves_the_page(tmp_path, anny_body):
             if not line:
                 break
             lines.append(line)
-            m = re.search(r"open (http://127\.0\.0\.1:\d+)", line)
+            m = re.search(r"open (http://127\.0\.0\.1:\d+/\?token=\S+) in a browser", line)
             url = m.group(1) if m else None
-        assert url == f"http://127.0.0.1:{port}", "".join(lines)
-        html = urllib.request.urlopen(url, timeout=10).read().decode()
+        assert url is not None and url.startswith(f"http://127.0.0.1:{port}/?token="), "".join(lines)
+        with pytest.raises(urllib.error.HTTPError, match="403"):  # the page without the token
+            urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=10)
+        browser = urllib.request.build_opener(urllib.request.HTTPCookieProcessor())  # keeps the token's cookie
+        html = browser.open(url, timeout=10).read().decode()
         assert "<html" in html.lower()
     finally:
         proc.send_signal(signal.SIGINT)
@@ -347,8 +352,8 @@ BAD_NAMES = ["../../x", "/tmp/abs", "sub/dir", "..", ".hidden", "", "a b", "x" *
 
 
 def test_the_page_writes_only_plain_names_under_its_folder(studio, tmp_path):
-    """The studio has no authentication: exports, run folders and sessions typed in the page
-    are plain names under --runs; anything else is refused and nothing is written."""
+    """Exports, run folders and sessions typed in the page are plain names under --runs;
+    anything else is refused and nothing is written."""
     before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
     for name in BAD_NAMES:
         for action in (studio.export_a, studio.optimiser.export_iteration, studio.optimiser.optimise, studio.save):
@@ -378,7 +383,7 @@ def test_export_never_overwrites_without_a_second_press(studio, tmp_path):
 def test_cli_refuses_a_remote_host_without_allow_remote(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "kgarment.cli", "studio", "--host", "0.0.0.0"], cwd=tmp_path,
                          capture_output=True, text=True, check=False)
-    assert bad.returncode == 2 and "--allow-remote" in bad.stderr and "no authentication" in bad.stderr
+    assert bad.returncode == 2 and "--allow-remote" in bad.stderr and "over plain HTTP" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1, bad.stderr
 
 

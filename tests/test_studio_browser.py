@@ -113,9 +113,14 @@ def test_place_paint_save_in_the_browser(studio, tmp_path):
         try:
             page = browser.new_page(viewport={"width": 1100, "height": 750})
             page.goto(studio.url)
+            # the URL without its token is refused; with it the page (its cookie) and its WebSocket get in
+            port = studio.server.get_port()
+            refused = page.goto(f"http://127.0.0.1:{port}/")
+            assert refused.status == 403 and "no session token" in page.content()
             page.get_by_text("kgarment studio").first.wait_for(timeout=30000)
             wait_for(lambda: len(studio.server.get_clients()) == 1, what="the page to connect")
             reported = []
+            assert page.url == f"http://127.0.0.1:{port}/"  # the token left the address bar
             client = next(iter(studio.server.get_clients().values()))
             client.camera.on_update(lambda cam: reported.append(np.array(cam.position)))
             front = front_faces(studio)

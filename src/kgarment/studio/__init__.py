@@ -11,6 +11,7 @@ The logic lives in plain modules tested without a browser; only :mod:`.app`,
 ``view``         poses, strain, colours
 ``state``        the edited layers (design, attachments, clutches, budget) with undo
 ``session``      save/load a session folder; open problem files, runs and sessions
+``folders``      where the page may read: under the folders of the command line only
 ``runs``         run folders: compatibility, iterations, progress picture
 ``results``      a simulated design as the page keeps it; the results table
 ``settings``     the page's settings and the edit tools
@@ -21,6 +22,7 @@ The logic lives in plain modules tested without a browser; only :mod:`.app`,
 ``optimise``     controller: BESO through the one run driver; open and scrub runs
 ``scene``        what the garment looks like now; the viser meshes and picking
 ``panel``        the viser controls
+``gate``         who may connect: the studio's own page with the session token
 ``app``          :class:`Studio`, the page (``kgarment studio``): the parts, files
 ===============  =====================================================================
 """

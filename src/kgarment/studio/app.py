@@ -31,6 +31,8 @@ from kgarment.body import Body
 from kgarment.errors import KgarmentError
 from kgarment.studio import brush, view
 from kgarment.studio.edit import Editor
+from kgarment.studio.folders import Folders
+from kgarment.studio.gate import Gate, guarded_server
 from kgarment.studio.optimise import Optimiser
 from kgarment.studio.panel import Panel
 from kgarment.studio.scene import Scene, garment_colors, garment_target
@@ -56,13 +58,13 @@ class Studio:
     """The web app (see the module docstring). ``opened`` from
     :func:`kgarment.studio.session.read_source`; ``session`` : folder Save writes to
     (default: the opened session's); ``runs`` : where optimisations go when no folder is
-    named; ``body`` reuses a posed body (tests)."""
+    named; ``body`` reuses a posed body (tests).  Only the page opened at :attr:`url` (it
+    holds the session token) can connect (:mod:`kgarment.studio.gate`), and it reads only
+    under :attr:`folders` (:mod:`kgarment.studio.folders`)."""
 
     def __init__(self, opened: Opened, *, host: str = "127.0.0.1", port: int = 8080,
                  session: str | Path | None = None, runs: str | Path = "runs/studio", device: str = "cpu",
                  body: Body | None = None):
-        import viser  # the optional [studio] extra: importing kgarment.studio must work without it
-
         self.lock = threading.RLock()
         self.device = device
         self.session_dir: Path | None = Path(session) if session else opened.session
@@ -74,10 +76,12 @@ class Studio:
         self._confirm_write: Path | None = None
         self._popups: dict = {}  # client id -> its last notification handle
         self.files_root = Path(runs)
+        self.folders = Folders.of(opened, runs, session)
+        self.gate = Gate(host)
         self.edit = Editor(self)
         self.sims = Simulations(self, opened.compare)
         self.optimiser = Optimiser(self, self.sims, Path(runs))
-        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.server = guarded_server(self.gate, host=host, port=port, verbose=False)
         self.server.scene.set_up_direction("+z")
         self.scene = Scene(self.server, self._on_drag)
         self.panel = Panel(self)
@@ -90,7 +94,8 @@ class Studio:
     # ----- life cycle -------------------------------------------------------------------
     @property
     def url(self) -> str:
-        return f"http://{self.server.get_host()}:{self.server.get_port()}"
+        """The page's address with the session token (the page is let in with it only)."""
+        return self.gate.url(self.server.get_host(), self.server.get_port())
 
     def stop(self) -> None:
         for job in (self.sims.job, self.optimiser.job):
@@ -278,6 +283,7 @@ class Studio:
             raise KgarmentError("give a problem file, a run folder or a session folder to open")
         if self.sims.running or self.optimiser.running:
             raise KgarmentError("a simulation or optimisation is running; stop it before opening something else")
+        self.folders.inside(text, "open")
         if self.state.dirty and not force and self._confirm_open != text:
             self._confirm_open = text
             raise KgarmentError("there are unsaved changes: save them, or press Open again to discard them")

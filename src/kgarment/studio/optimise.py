@@ -149,7 +149,7 @@ class Optimiser:
     def open(self, folder) -> None:
         """Open a run folder for scrubbing (it must fit the studio's body and garment)."""
         page = self.page
-        run = read_run(folder)
+        run = read_run(page.folders.inside(folder, "run folder"))
         check_compatible(run, page.state.problem, page.state.n_faces)
         with page.lock:
             self.run = run

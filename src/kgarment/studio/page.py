@@ -12,6 +12,7 @@ import threading
 from pathlib import Path
 from typing import Protocol
 
+from kgarment.studio.folders import Folders
 from kgarment.studio.settings import Settings
 from kgarment.studio.state import StudioState
 
@@ -21,13 +22,15 @@ class Page(Protocol):
 
     state : the edited layers (replaced when another source is opened);  settings : the
     page's settings;  lock : held while the page reads or swaps what it shows;  device :
-    torch device for simulations and optimisations.
+    torch device for simulations and optimisations;  folders : where the page may read
+    (every path typed into it is checked there first).
     """
 
     state: StudioState
     settings: Settings
     lock: threading.RLock
     device: str
+    folders: Folders
 
     def say(self, text: str, error: bool = False, notify: bool = False) -> None:
         """Show ``text`` in the status line (errors and ``notify`` also pop up)."""

@@ -54,7 +54,7 @@ class Panel:
         self.s = studio
         self._path_drawn = None  # the force path whose picture is shown
         gui = studio.server.gui
-        gui.configure_theme(control_width="large")
+        gui.configure_theme(control_width="large", show_share_button=False)  # a public tunnel: not offered
         self.status = gui.add_markdown("")
         self.message = gui.add_markdown("")
         tabs = gui.add_tab_group()

@@ -266,8 +266,8 @@ NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
 def studio_path(root, name: str, what: str, suffix: str = "") -> Path:
     """Where a file or folder the page names goes: ``root / name`` for a plain ``name``
     (letters, digits, '.', '_', '-'; no folders, no '..'), with ``suffix`` appended when
-    missing.  The studio has no authentication, so the page never chooses where on the
-    disk it writes: only a name under the folder given on the command line."""
+    missing.  The page never chooses where on the disk it writes: only a name under the
+    folder given on the command line (what it reads: :mod:`kgarment.studio.folders`)."""
     text = name.strip()
     if not NAME.fullmatch(text) or ".." in text:
         raise KgarmentError(f"{what} {name!r}: give a plain name (letters, digits, '.', '_', '-'); "

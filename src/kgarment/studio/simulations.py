@@ -273,8 +273,9 @@ class Simulations:
         text = source.strip()
         if not text:
             raise KgarmentError("give a design file, a run folder or RUN@ITERATION")
+        self.page.folders.inside(text, "design B")  # before anything there is looked at
         st = self.page.state
-        run = Path(text.partition("@")[0])
+        run = Path(text.rpartition("@")[0] if "@" in text and not Path(text).exists() else text)
         if run.is_dir():
             check_compatible(read_run(run), st.problem, st.n_faces)
         d = load_design(text, st.n_faces) > 0.5
