@@ -1,7 +1,8 @@
 """End to end in a real headless browser (Debian's chromium driven by Playwright): open the
-studio page, place a clutch by two canvas clicks and another from landmarks, paint a
-stroke (buttons, a canvas click and a canvas drag), save, and check the saved session.
-Screenshots are kept under the test's tmp_path (printed)."""
+studio page (refused without its token, let in with it), place a clutch by two canvas
+clicks and another from landmarks, refuse an out-of-range budget, paint a stroke (buttons,
+a canvas click and a canvas drag), save, and check the saved session.  Screenshots are
+kept under the test's tmp_path (printed)."""
 
 from __future__ import annotations
 
@@ -62,12 +63,12 @@ def choose(page, label, option):
     page.get_by_role("option", name=option, exact=True).click()
 
 
-def fill_slider(page, label, value):
+def fill_slider(page, label, value, key="Enter"):
     """Type into the number box beside a slider (the slider's label names the whole row)."""
     row = page.locator("label", has_text=label).locator("xpath=ancestor::div[contains(@class,'mantine-Flex-root')][1]")
     box = row.locator("input.mantine-NumberInput-input")
     box.fill(str(value))
-    box.press("Enter")
+    box.press(key)
 
 
 def fill_text(page, label, value):
@@ -112,15 +113,15 @@ def test_place_paint_save_in_the_browser(studio, tmp_path):
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
         try:
             page = browser.new_page(viewport={"width": 1100, "height": 750})
-            page.goto(studio.url)
             # the URL without its token is refused; with it the page (its cookie) and its WebSocket get in
             port = studio.server.get_port()
             refused = page.goto(f"http://127.0.0.1:{port}/")
             assert refused.status == 403 and "no session token" in page.content()
+            page.goto(studio.url)
             page.get_by_text("kgarment studio").first.wait_for(timeout=30000)
             wait_for(lambda: len(studio.server.get_clients()) == 1, what="the page to connect")
-            reported = []
             assert page.url == f"http://127.0.0.1:{port}/"  # the token left the address bar
+            reported = []
             client = next(iter(studio.server.get_clients().values()))
             client.camera.on_update(lambda cam: reported.append(np.array(cam.position)))
             front = front_faces(studio)
@@ -155,6 +156,16 @@ def test_place_paint_save_in_the_browser(studio, tmp_path):
             wait_for(lambda: "elbow_outer_R" in st.clutch_names(), what="the landmark clutch")
             assert st.clutch("elbow_outer_R").length == pytest.approx(0.06)
             mark('landmark clutch')
+
+            # a budget of 5 typed and left at once (Tab): refused, and the box's clamp to 1 is not taken
+            fill_slider(page, "Budget (area share)", 5, key="Tab")
+            wait_for(lambda: "budget 5.0 is outside" in studio.messages[-1][0], what="the refused budget")
+            budget_box = page.locator("label", has_text="Budget (area share)").locator(
+                "xpath=ancestor::div[contains(@class,'mantine-Flex-root')][1]").locator("input.mantine-NumberInput-input")
+            wait_for(lambda: budget_box.input_value() == "0.15", what="the budget box back at 0.15")
+            time.sleep(0.5)
+            assert st.budget == pytest.approx(0.15) and "budget 15%" in studio.panel.coverage.content
+            mark('budget')
 
             # a paint stroke: dabs at face ids, a canvas click and a canvas drag
             choose(page, "Tool", "paint reinforcement")
@@ -225,11 +236,11 @@ def test_place_paint_save_in_the_browser(studio, tmp_path):
             mark('saved')
 
             # exports: a path that leaves the studio's folder is refused; a name lands in RUNS/exports
-            fill_text(page, "Export design A as", "../../escaped")
-            page.get_by_role("button", name="Export design A").click()
+            fill_text(page, "Export the design shown as", "../../escaped")
+            page.get_by_role("button", name="Export the design shown").click()
             wait_for(lambda: "give a plain name" in studio.messages[-1][0], what="the refused export")
-            fill_text(page, "Export design A as", "mine")
-            page.get_by_role("button", name="Export design A").click()
+            fill_text(page, "Export the design shown as", "mine")
+            page.get_by_role("button", name="Export the design shown").click()
             exported = tmp_path / "runs" / "exports" / "mine.npz"
             wait_for(exported.is_file, what="the exported design")
             mark('exported')

@@ -1,7 +1,8 @@
 """Who may use the studio and what its page may read (issue 80): only its own page, holding
 the session token, connects (another Origin, no token or a wrong one: 403 before viser sees
 the request); every path typed into the page is refused, unread, outside the studio's
-folders."""
+folders; an out-of-range budget keeps the last valid one; the File tab exports the design
+the view shows."""
 
 from __future__ import annotations
 
@@ -194,3 +195,42 @@ def test_the_studios_folders_are_those_of_its_command_line(tmp_path):
     with pytest.raises(KgarmentError, match="reads only under"):
         f.inside(f"{tmp_path / 'proj'}/../x", "design B")
     assert Folders.of(read_source(None), tmp_path / "runs").roots == ((tmp_path / "runs").resolve(),)
+
+
+# ----- the budget and the export ---------------------------------------------------------------
+def test_an_out_of_range_budget_keeps_the_last_valid_one(studio):
+    """Typing 5: refused, and the number box's clamp to 1 that follows is not taken for the
+    user's (it made the budget 100% and the next optimisation ran with target_area = 1)."""
+    from kgarment.studio.optimise import RunInputs
+
+    panel, st = studio.panel, studio.state
+    assert st.budget == pytest.approx(0.15)
+    studio.guarded(panel._set_budget, 5.0)
+    assert last(studio) == ("budget 5.0 is outside [0.01, 1]", True)
+    assert panel.budget.value == pytest.approx(0.15) and st.budget == pytest.approx(0.15)
+    studio.guarded(panel._set_budget, 1.0)  # the box's clamp of the refused 5
+    assert st.budget == pytest.approx(0.15) and panel.budget.value == pytest.approx(0.15)
+    assert RunInputs.of(st).problem.design.beso.target_area == pytest.approx(0.15)
+    studio.guarded(panel._set_budget, -1.0)
+    studio.guarded(panel._set_budget, 0.01)  # its clamp at the low end
+    assert st.budget == pytest.approx(0.15)
+    panel._set_budget(0.3)
+    panel._set_budget(1.0)  # chosen, not a clamp: taken
+    assert st.budget == pytest.approx(1.0) and "100%" in panel.coverage.content
+
+
+def test_the_file_tab_exports_the_design_shown(studio, tmp_path):
+    from kgarment.design import load_design
+
+    n = studio.state.n_faces
+    designs = np.zeros((2, n), bool)
+    designs[0], designs[1, ::4] = True, True
+    run = fake_run(tmp_path / "runs" / "r", problem(), designs)
+    studio.optimiser.open(str(run))
+    assert studio.settings.mode == "run" and studio.optimiser.k == 1 and not studio.state.design.any()
+    out = studio.export_shown("shown")
+    assert np.array_equal(load_design(out, n) > 0.5, designs[1])  # what the view shows, not the empty A
+    assert "iteration 1 of run r" in last(studio)[0] and "not design A" in last(studio)[0]
+    studio.settings.mode = "design"
+    out = studio.export_shown("a")
+    assert not (load_design(out, n) > 0.5).any() and last(studio)[0].startswith("design A written to")

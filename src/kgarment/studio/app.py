@@ -315,3 +315,15 @@ class Studio:
         out = export_design(out, self.state.design, self.state.base_garment)
         self.say(f"design A written to {out}", notify=True)
         return out
+
+    def export_shown(self, name: str) -> Path | None:
+        """Write the design the view shows (the File tab's export): the run's iteration in
+        the "run" colour mode with a run open, design A otherwise; the message says which."""
+        run = self.optimiser.run
+        if self.settings.mode == "run" and run is not None and run.n_iterations:
+            out = self.optimiser.export_iteration(name)
+            if out is not None:
+                self.say(f"the design shown, iteration {self.optimiser.k} of run {run.folder.name}, written to {out} "
+                         "(not design A: Load iteration into design A to edit it)", notify=True)
+            return out
+        return self.export_a(name)

@@ -8,6 +8,8 @@ fire the update callbacks with no client; those are ignored, so only the user's 
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
@@ -15,6 +17,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from kgarment.constants import BUDGET_RANGE
+from kgarment.errors import KgarmentError
 from kgarment.studio import view
 from kgarment.studio.edit import Editor
 from kgarment.studio.forces import force_image
@@ -26,6 +29,7 @@ from kgarment.studio.settings import TOOLS
 from kgarment.studio.simulations import MAX_PATH_FRAMES, Simulations
 
 NONE = "(none)"
+CLAMP_ECHO_SECONDS = 2.0  # how long after a refused budget the number box's clamped value is ignored
 
 
 class Host(Page, Protocol):
@@ -45,6 +49,7 @@ class Host(Page, Protocol):
     def save(self, folder: str | None = None) -> list[Path] | None: ...
     def open(self, path: str, force: bool = False) -> None: ...
     def export_a(self, name: str) -> Path | None: ...
+    def export_shown(self, name: str) -> Path | None: ...
 
 
 class Panel:
@@ -53,6 +58,7 @@ class Panel:
     def __init__(self, studio: Host):
         self.s = studio
         self._path_drawn = None  # the force path whose picture is shown
+        self._clamp_echo: tuple[float, float] | None = None  # (value, until): see _set_budget
         gui = studio.server.gui
         gui.configure_theme(control_width="large", show_share_button=False)  # a public tunnel: not offered
         self.status = gui.add_markdown("")
@@ -174,9 +180,10 @@ class Panel:
         self._button(gui, "Save session", lambda: s.save(self.session_path.value))
         self.open_path = gui.add_text("Open", "", hint="a problem file (.toml), a run folder or a session folder")
         self._button(gui, "Open", lambda: s.open(self.open_path.value))
-        self.export_a_path = gui.add_text("Export design A as", "design.npz", hint=f"a name; written to "
-                                          f"{s.files_root / 'exports'}")
-        self._button(gui, "Export design A", lambda: s.export_a(self.export_a_path.value))
+        self.export_a_path = gui.add_text("Export the design shown as", "design.npz", hint=f"a name; written to "
+                                          f"{s.files_root / 'exports'}: the run's iteration in the run colour "
+                                          "mode, else design A")
+        self._button(gui, "Export the design shown", lambda: s.export_shown(self.export_a_path.value))
 
     # ----- callbacks --------------------------------------------------------------------
     def _set(self, name: str, redraw: bool = True):
@@ -190,7 +197,22 @@ class Panel:
             self.s.redraw(body=name in ("motion", "pose", "show_body"))
 
     def _set_budget(self, value) -> None:
-        self.s.state.set_budget(float(value))
+        """The budget typed or slid.  An out-of-range one is refused and the slider goes back
+        to the last valid budget; the number box beside it clamps what was typed (5 to 1)
+        when it loses focus, and when that happens before the slider is back, the clamped
+        value that follows the refusal is the box's, not the user's: it is ignored too."""
+        v = float(value)
+        echo, self._clamp_echo = self._clamp_echo, None
+        if echo is not None and v == echo[0] and time.monotonic() < echo[1]:
+            self.budget.value = round(self.s.state.budget, 2)
+            return
+        try:
+            self.s.state.set_budget(v)
+        except KgarmentError:
+            if math.isfinite(v):
+                self._clamp_echo = (min(max(v, BUDGET_RANGE[0]), BUDGET_RANGE[1]), time.monotonic() + CLAMP_ECHO_SECONDS)
+            self.budget.value = round(self.s.state.budget, 2)
+            raise
         self.refresh_status()
 
     def _set_activation(self, motion: str, text: str) -> None:
