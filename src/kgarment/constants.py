@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 
-# ----- design variable (method.md section 6) ------------------------------------------------
+# ----- design variable (the manual's method page, docs/method/index.md, "BESO") ------------
 X_MIN = 1e-3      # soft-kill minimum: the design value of plain cloth
 PENALTY = 1.6     # material interpolation exponent p: Y(d) = d^p Y1 + (1 - d^p) Y0
 
@@ -22,8 +22,8 @@ PENALTY = 1.6     # material interpolation exponent p: Y(d) = d^p Y1 + (1 - d^p)
 SIM_MODEL = 2
 SOLVER_TOL = 1e-5      # a direct kgarment.sim.solve_states call (the library default)
 DESIGN_TOL = 1e-3      # [solver] tol: iteration 0, the fully reinforced reference (why: problem.spec.SolverSpec)
-EVOLUTION_TOL = 3e-2   # [solver] evolution_tol: every later design iteration, at A* too (since 2026-11-28;
-                       # 3e-2 since 2026-11-29, 1e-2 before: benchmarks/README.md)
+EVOLUTION_TOL = 3e-2   # [solver] evolution_tol: every later design iteration, at A* too
+                       # (why: docs/notes/solver.md)
 EVALUATION_TOL = 1e-4  # evaluations (evaluate, simulate, studio, reproduce, fabricate) solve to
                        # min([solver] tol, EVALUATION_TOL)
 ADAPTIVE_VERTICES = 4000  # evaluations solve garments of more vertices with the adaptive Hessian, not the
@@ -47,7 +47,7 @@ FRICTION_LAGS = 3      # re-solves with the normal forces of the last equilibriu
 FRICTION_SETTLED = 0.1  # the normal forces have settled when none moved by more than this share of
                         # the largest
 
-# ----- BESO (method.md section 6; the paper's values) -----------------------------------------
+# ----- BESO (docs/method/index.md, "BESO"; the paper's values) ------------------------------
 TARGET_AREA = 0.15     # A*, the reinforced share of the garment's area (0.20 for the sleeves)
 ER = 0.015             # evolution ratio: the target area shrinks by this share per iteration
 AR_MAX = 0.015         # at most this share of the faces is added per iteration
@@ -90,7 +90,7 @@ def target_reached(area: float, target: float, er: float) -> bool:
     """Whether a reinforced area share ``area`` counts as the target ``target`` (A*)."""
     return abs(area - target) <= TARGET_MARGIN + er * target
 
-# ----- clutch hardware: how much an ON clutch holds (method.md section 9; kgarment.sim.slip) -----
+# ----- clutch hardware: how much an ON clutch holds (kgarment.sim.slip; docs/method/index.md) ---
 CLUTCH_MODELS = ("locked", "slip", "cable")  # locked: an ON clutch never slips (the paper's model);
                            # slip: its elements hold up to the holding force (kgarment.sim.slip);
                            # cable: one pull-only force along it, up to the holding force (kgarment.sim.cable)
@@ -103,7 +103,7 @@ CLUTCH_RANGES = {"holding_stress": (1.0, 1e8), "voltage": (0.0, 1e4), "dielectri
                  "permittivity": (1.0, 1e5), "friction": (1e-3, 2.0), "holding_force": (1e-3, 1e5)}
 SLIPPING = 0.98            # a clutch slips where its tension reaches this share of its holding force
 
-# ----- judging a design as a garment (method.md section 9) -----------------------------------
+# ----- judging a design as a garment (docs/method/index.md, "Judging a design as a garment") --
 LOADED_SHARE = 0.10    # a clutch is "loaded" in a motion when switching it on alone gives, or
                        # switching it off alone loses, at least this share of the energy that
                        # switching all clutches on adds (kgarment.evaluate.loads)

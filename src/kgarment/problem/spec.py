@@ -73,8 +73,7 @@ class ClutchHardware:
         garment: its centre line is held to the garment as stiffly as reinforced fabric
         (``kgarment.sim.model``, ``tie``), where without a channel (the paper's build: the
         clutch snapped on at its two ends) it is held only weakly and a strip pulled taut over
-        a bent elbow can roll off sideways, restrained by skin friction alone (measured on the
-        selective sleeve: docs/notes/selective.md, "The outer strip rolls off the elbow").
+        a bent elbow can roll off sideways, restrained by skin friction alone.
     """
 
     model: str = "locked"
@@ -115,7 +114,7 @@ class ClutchesSpec:
 
 @dataclass(frozen=True)
 class BesoParams:
-    """BESO settings (paper defaults; method.md section 6).
+    """BESO settings (the paper's defaults; the manual's method page, docs/method/index.md).
 
     target_area : A*, reinforced area fraction to reach (0.15; 0.20 for the sleeve).
     er : evolution ratio, the target area shrinks by this fraction per iteration.
@@ -183,7 +182,7 @@ class DesignSpec:
     movement (the body posed part of the way; one more motion ``MOTION@t`` of the design
     objective, ON with the motion's clutch set and OFF; design runs only, evaluations stay
     at the target poses): a design that holds the beginning of the motion anchors its
-    clutches before the end can find another equilibrium (README, "Design runs");
+    clutches before the end can find another equilibrium;
     weights : ((motion, w), ...) each named motion's weight in the objective, w > 0 (a
     motion not named: 1; its early poses share it): a designer's priorities where the
     paper counts every motion equally (:mod:`kgarment.optimize.objective`).
@@ -243,57 +242,42 @@ def balance_weight(balance, motion: str) -> float:
 class SolverSpec:
     """[solver]: simulator settings.
 
-    tol : the scaled force residual of :class:`kgarment.sim.SolverOptions` (its module doc).
-    1e-3 for design iterations: the equilibria are only defined to about that accuracy.
-    ``benchmarks/accuracy.py`` (three-motion shirt, subdivision 0, 6 states after a BESO-like
-    design change): per-face energy densities at 1e-3 are within 0.3% (median over states;
-    1.9% at most) of a 1e-7 solve, while solves that all *converge* to 1e-5 with other
-    solver settings land up to 0.35-2.4% apart: a membrane without bending stiffness on a
-    frictionless body has many nearly equal equilibria (slack cloth, wrinkles, sliding).
-    The main job at 1e-3 and at 1e-4 ends with designs 4 faces (of 3,229) apart, rho ON
-    within 1% when both are evaluated at 1e-5, in 2.5x less time.  Evaluations
-    (``kgarment evaluate``, ``simulate``, ``reproduce``, ``fabricate``, the studio) solve to
-    ``min(tol, EVALUATION_TOL)`` (1e-4; :func:`kgarment.problem.solver_options`).
-    evolution_tol : the tolerance of every design iteration after iteration 0 (iteration 0,
-    the fully reinforced garment, the reference of rho, solves to ``tol``; the final
-    design is evaluated at ``min(tol, EVALUATION_TOL)``).  The ranking that moves the
-    design needs sensitivities, not digits (Amir & Sigmund 2011, "On reducing
-    computational effort in topology optimization: how accurate should the analysis
-    be?"), and the objectives that decide convergence at A* are total energies, whose
-    error is of second order in the residual: at A* the main job's objective swings by
-    about 2% with the exchange of faces whether the states are solved to 1e-2 or to 1e-3
-    (until 2026-11-28 they were solved to ``tol``).  3e-2 (since 2026-11-29, 1e-2 before):
-    the three-motion shirt's final designs at 3e-2 and 1e-2 are 35 of 3,229 faces apart at
-    subdivision 0 and 21 of 12,916 at subdivision 1, rho ON within 1%, every clutch's share
-    within 0.02 and its tension within 10%, for 42% fewer Newton iterations in the loop at
-    subdivision 1; the arm-flexion sleeve's rho ON over the motion from rest 1.14 against
-    1.18, for 59% fewer (``benchmarks/README.md``).  Set it equal to ``tol`` to solve every
-    iteration alike.
+    tol : the scaled force residual of :class:`kgarment.sim.SolverOptions` (its module doc):
+    the tolerance of iteration 0 (the fully reinforced garment, the reference of rho).  1e-3:
+    a membrane without bending stiffness on a frictionless body has many nearly equal
+    equilibria, so per-face energy densities are defined to about that accuracy and no
+    better.  Evaluations (``kgarment evaluate``, ``simulate``, ``reproduce``, ``fabricate``,
+    the studio) solve to ``min(tol, EVALUATION_TOL)`` (1e-4;
+    :func:`kgarment.problem.solver_options`).
+    evolution_tol : the tolerance of every design iteration after iteration 0; the final
+    design is evaluated at ``min(tol, EVALUATION_TOL)``.  The ranking that moves the design
+    needs sensitivities, not digits, and the objectives that decide convergence at A* are
+    total energies, whose error is of second order in the residual.  Set it equal to
+    ``tol`` to solve every iteration alike.
     max_iter : Newton iterations per state.
     skin_start : every design iteration also solves each state from the evaluator's two
     starts (the skin-tight garment and the fully reinforced garment's equilibrium) and keeps
-    the lowest-energy equilibrium (the evaluator's rule, :mod:`kgarment.evaluate.evaluator`), so
-    that the run optimises the state the evaluation reports; triples the solves.  For
-    clutches that a frictionless limb lets slide off the stretched side (the arm-flexion
-    sleeve: along the warm-started path the clutch stays over the outer elbow at 40-300% more
-    energy than where the garment settles, turned ~20 degrees about the arm).
+    the lowest-energy equilibrium (the evaluator's rule, :mod:`kgarment.evaluate`), so that
+    the run optimises the state the evaluation reports; triples the solves.  For clutches
+    that a frictionless limb lets slide off the stretched side.
     path_start : every ``path_start``-th design iteration (0: never) also solves each ON state
     over its motion from rest as the evaluator does (``evaluate --path``: the design's rest
-    equilibrium, ``PATH_FRAMES`` frames each from the ones before, friction holding each
+    equilibrium, ``path_frames`` frames each from the ones before, friction holding each
     where the one before left it, at the evaluator's tolerance;
-    ``kgarment.optimize.motion_start.motion_ends``): the state a wearer reaches, which neither
-    the warm-started path through the designs nor the two starts need find.  With
+    :func:`kgarment.optimize.motion_start.motion_ends`): the state a wearer reaches, which
+    neither the warm-started path through the designs nor the two starts need find.  With
     ``skin_start`` the state becomes the evaluator's (the lower of its two starts and that
     end), without it the end is kept where lower by more than 1%; the later iterations start
-    from it, and the guard does not judge an iteration whose state the check moved.  About a
-    minute per check on the selective sleeve at subdivision 1; needs a posable body.
+    from it, and the guard does not judge an iteration whose state the check moved.  Needs a
+    posable body.
     path_frames : the frames of that motion from rest (the last one the target pose), for the
     check and the run's final evaluation (``evaluate --path``'s count).  With skin friction
-    the motion's end depends on it where the garment slips part way: the selective sleeve's
-    flexion read rho ON 1.09 over 10 frames, 0.80 over 20 and 0.77 over 40 for one design
-    (docs/notes/selective.md, "Frames of the motion from rest").
+    the motion's end depends on it where the garment slips part way
+    (``evaluate --path K --converge`` checks it).
     workers : processes solving states in parallel; 0 = one per core, at most 8 (results do
     not depend on it).
+
+    Measurements behind these defaults: docs/notes/solver.md.
     """
 
     method: str = "newton"

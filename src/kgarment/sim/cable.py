@@ -4,11 +4,8 @@ An electrostatic clutch is two strips that slide over each other; switched on, f
 between them holds the force between the clutch's two ends, whatever the strips do in
 between.  The ``locked`` and ``slip`` models (the paper's and :mod:`kgarment.sim.slip`) make
 every element of an ON strip stiff: a band bonded to the cloth, whose halves can be
-stretched by the cloth under them while the strip as a whole is shortened.  Measured on
-the selective sleeve (docs/notes/design.md): in arm flexion the extension clutch's strip
-was 4.9% *shorter* end to end, its upper half buckled and its lower half stretched
-1.7-5.8% by the cloth, and its elements stored 2.21 J at 60 N -- a "lock" no real clutch
-has, since shortened end to end a clutch is slack.
+stretched by the cloth under them while the strip as a whole is shortened, so that it
+stores energy (a "lock") where a real clutch, shortened end to end, is slack.
 
 The ``cable`` model (``[clutches] model = "cable"``) keeps an ON strip's OFF membrane (the
 textile guide the strips slide in) and adds one pull-only cable per clutch along the
@@ -36,14 +33,7 @@ consecutive segment lengths, unchanged when the path stretches or shortens evenl
 resists no change of the cable's length), with ``k_s = SPACING w min(cap, k) / l0``
 (l0 the mean rest segment): a 1 mm unevenness between two segments stores ~1e-4 J.
 
-What did not work (the selective sleeve, docs/notes/clutches.md "Clutches as cables"):
-
-* a cable on the strip's mean axial stretch (every element's ``|F a|``) puts forces along
-  the strip on inner vertices wherever the elements' rest directions differ, which the
-  soft buckling guide cannot balance: Newton stalled at residual ~0.1;
-* a cable along the guide's places *on the garment* (material points of the cloth) gathers
-  the cloth under it, which wrinkles at no cost: faces collapse and Newton stalls;
-* the cable through the strip's nodes without the spacing term (above).
+Variants that stalled Newton are in docs/notes/solver.md, "The cable clutch".
 
 Derivatives, with ``u_j`` the unit segment directions and ``J = dL/dx = W^T (u_{j-1} - u_j)``::
 

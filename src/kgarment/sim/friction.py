@@ -19,9 +19,7 @@ textile 0.3-0.6), so the strip's vertices take the skin's coefficient.  They sli
 *along* their strip (``along``, :func:`strip_directions`, lagged with the normals): the
 film slides in its guide, and a cable's inner nodes only sample its path; held along it
 too, they bunched where the cable pressed hardest and Newton stalled (forces of 900 N left
-at a node).  Across the strip they meet the full Coulomb force.  With friction on the
-garment's vertices alone the selective sleeve still turned about the arm in flexion, the
-cable's pressure meeting no friction (docs/notes/clutches.md, "Skin friction").
+at a node).  Across the strip they meet the full Coulomb force.
 
 With the contact normal force ``lambda_v`` and the unit contact normal ``n_v`` *lagged*
 (taken at a given configuration and held fixed during a solve, as in IPC: Li et al. 2020,

@@ -16,8 +16,8 @@ Hessian (``SolverOptions.hessian``):
   freeze everything else.  The garment's energy is genuinely non-convex (compressed
   clutch strips, triangles just inside the normal branch of the wrinkling rule,
   membranes without bending); the exact curvature, shifted only as much as needed,
-  follows it best: on the three-motion shirt (subdivision 0, ``paper``) it needs ~35%
-  fewer iterations than element-wise projection and finds lower-energy equilibria;
+  follows it best (fewer iterations than element-wise projection, lower-energy equilibria:
+  docs/notes/solver.md);
 * ``"adaptive"``: per-element PSD projection (see ``membrane``; contact Gauss-Newton),
   switching to the exact Hessian after every full step;
 * ``"projected"``: always the projected Hessian (linear convergence wherever the
@@ -29,14 +29,7 @@ Hessian (``SolverOptions.hessian``):
   garment's soft modes -- the cloth sliding round the body, whose own stiffness falls with
   the square of their wavelength in edges -- so each shifted step moves them by a fraction
   ``kappa / (kappa + tau s)`` of the way: a slide that crawls, the longer the finer the
-  mesh.  The element-wise projection leaves them alone.  Measured (2026-11-29, the
-  three-motion shirt's design, 1e-4, one process): at subdivision 2 (26,188 vertices) bend
-  forward OFF from the loop's last equilibrium reached in 100 adaptive iterations the energy
-  the shifted Hessian reached in 280, arms raise ON from the skin-tight garment 26.9 J after
-  135 adaptive iterations against 37.3 J shifted; the final evaluation at subdivision 1
-  (6,635 vertices, cold) 6,027 Newton iterations and 260 s against 6,979 and 285 s, rho ON
-  within 0.7% and every clutch share within 0.01; at subdivision 0 (1,702 vertices) the main
-  job took 87 s adaptive throughout against 69 s.
+  mesh.  The element-wise projection leaves them alone (measurements: docs/notes/solver.md).
 
 A shift relative to the *local* stiffness matters: with a uniform one, a negative
 curvature of the 3 GPa clutch forces a shift that freezes the 0.5 MPa cloth.  A floor of
@@ -52,12 +45,7 @@ energy keeps falling.
 Where the shifted exact Hessian gets stuck -- its shift escalated to ``STUCK_SHIFT`` (100 x
 the local stiffness: converging solves stay at or below 1, measured on the shirt at
 subdivision 0) or the energy stopped falling -- the solve goes on from where it is with
-the adaptive Hessian.  Measured at subdivision 2 (the three-motion shirt's arms-forward
-OFF state, coarse-to-fine, 2026-11-25): the exact Hessian stalled at residual 1.6e-3 in
-every design iteration (the rescue from the start stalled at the same point; the run
-could not converge, an iteration with an unconverged state not counting), with a shift of
-1e8 and elements around the worst vertex switching between the taut and the wrinkled
-branch; going on adaptive it slid 3.6 mJ lower and converged (83 iterations in all).
+the adaptive Hessian (docs/notes/solver.md, "Where the shifted Hessian gets stuck").
 A solve whose energy has not decreased beyond round-off (1e-11 |E|) over 10 iterations
 with the adaptive or projected Hessian stops unconverged ("stalled");
 :func:`kgarment.sim.solve.solve_states` then retries it with larger shifts
