@@ -1,7 +1,7 @@
 """The design loop's sensitivities with activation sets against finite differences of the
 equilibrium energies (issue #22): on a small tube with two clutches, pull switching clutch a
 on, twist clutch b at half voltage, a lockout, every state's BESO sensitivity (element energy
-density times the interpolation factor, method.md section 6) times ``p A_e`` is the derivative
+density times the interpolation factor, docs/method/index.md, "BESO") times ``p A_e`` is the derivative
 of that state's equilibrium energy along a design perturbation (the envelope theorem: at an
 equilibrium only the explicit dependence counts), and the objective's combined sensitivities
 are the derivative of the objective's terms, each motion's normalisation held."""
@@ -82,7 +82,7 @@ def test_every_states_sensitivity_is_its_energys_derivative(perturbed):
 
 def test_the_combined_sensitivities_are_the_objectives_derivative(perturbed):
     """The objective's terms (ON - OFF - lockout x (LOCK - OFF)) / n_m, n_m each motion's
-    largest ON sensitivity (method.md: the per-motion normalisation), differentiated by finite
+    largest ON sensitivity (docs/method/index.md: the per-motion normalisation), differentiated by finite
     differences of the equilibrium energies, against the loop's combined sensitivities."""
     setup, area, _, u, h, solved, plus, minus = perturbed
     motions = list(setup.case.motions)

@@ -1,5 +1,5 @@
 """A tiny design end to end: the same run whichever way it is driven, the area schedule
-of method.md section 6, and one truth per design (the run's metrics against the one
+of docs/method/index.md, "BESO", and one truth per design (the run's metrics against the one
 design evaluator)."""
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def test_the_run_does_not_depend_on_how_it_is_driven(runs):
 
 
 def test_the_area_follows_the_schedule(runs):
-    """Target of iteration k: max(A*, (1 - ER)^k) (method.md section 6); the reinforced
+    """Target of iteration k: max(A*, (1 - ER)^k) (docs/method/index.md, "BESO"); the reinforced
     area meets it to within the faces of one update."""
     _, lib, dr = runs
     p = dr.setup.beso.params

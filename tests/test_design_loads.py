@@ -1,4 +1,4 @@
-"""Per-clutch load: the share of the ON - OFF energy and the tension (method.md section 9)."""
+"""Per-clutch load: the share of the ON - OFF energy and the tension (docs/method/index.md, "Judging a design as a garment")."""
 
 from __future__ import annotations
 

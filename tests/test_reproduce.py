@@ -130,7 +130,7 @@ def test_the_manual_baseline_loads_a_clutch_nearest_one_ring():
     """A tube held at its bottom ring and pulled 5% at its top, an 8 cm clutch near the bottom:
     with both ends strapped to the bottom ring (the nearest anchor of each) the clutch would
     carry nothing; the manual baseline takes its upper end to the top ring, so switching the
-    clutch on carries the pull (share of the ON - OFF energy, method.md section 9)."""
+    clutch on carries the pull (share of the ON - OFF energy, docs/method/index.md, "Judging a design as a garment")."""
     from kgarment.case import Case
     from kgarment.evaluate import Evaluator
     from kgarment.sim import SolverOptions, build_model

@@ -103,7 +103,7 @@ def _pulled_band(R: float, w: float = 0.01):
 
 
 def _uniaxial_tension(stretch, mu, lam):
-    """dW/dlambda of the relaxed (uniaxial) neo-Hookean membrane (method.md section 4):
+    """dW/dlambda of the relaxed (uniaxial) neo-Hookean membrane (docs/method/index.md, "Energies"):
     C = diag(l^2, 1/l), J = sqrt(l), W = mu/2 (l^2 + 1/l - 2) - mu ln J + lam/2 (ln J)^2."""
     s = stretch
     return mu / 2 * (2 * s - 1 / s**2) - mu / (2 * s) + lam / 4 * np.log(s) / s

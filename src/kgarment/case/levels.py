@@ -10,7 +10,7 @@ exactly by :func:`vertex_map`.  The coarse-to-fine design (:mod:`kgarment.optimi
 and the nested start below use these maps.
 
 **The garment as put on, solved level by level** (:func:`put_on`).  The evaluator solves
-every state from two starts, one of them the garment as put on (method.md: a design run's
+every state from two starts, one of them the garment as put on (docs/method/index.md: a design run's
 first iteration starts there).  On a fine garment the skin-tight garment is a poor start:
 the cloth must slide a long way round the body to its equilibrium, and a slide is the
 softest of the garment's modes, whose stiffness falls with the square of its wavelength in

@@ -5,7 +5,7 @@ carried face for face to the others (:mod:`kgarment.case.transfer`: Anny keeps i
 topology for every phenotype, so the same faces, attachment rings and clutch spots exist on
 every body).  Each wearer's motions are further states of the one design, named
 ``MOTION@BODY`` (``arms_forward@S``); every one is normalised by its own fully reinforced
-garment like any motion (method.md section 7), so a small body's smaller energies weigh
+garment like any motion (docs/method/index.md, "The relative energy density"), so a small body's smaller energies weigh
 as much as a large one's.  The design, its area budget and its clutch ends are the first
 wearer's faces; rho of each state uses its own body's face areas.
 """

@@ -2,7 +2,7 @@
 
 :class:`Evaluator` holds a :class:`~kgarment.case.Case` built for
 evaluation (solver tolerance ``min(tol, EVALUATION_TOL)``), solves the fully reinforced
-garment once per state (the reference of rho, method.md section 7) and evaluates designs
+garment once per state (the reference of rho, docs/method/index.md, "The relative energy density") and evaluates designs
 of that garment.  ``kgarment evaluate``, ``kgarment simulate --design``'s report, the
 studio, ``kgarment reproduce`` and ``kgarment fabricate`` all evaluate through it, so they
 give the same numbers for the same design.

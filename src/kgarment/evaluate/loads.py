@@ -1,6 +1,6 @@
 """What each clutch does for a design: its share of the ON - OFF energy and its tension.
 
-Per motion and clutch k (method.md section 9):
+Per motion and clutch k (docs/method/index.md, "Judging a design as a garment"):
 
 * ``share``: garment energy with only clutch k ON minus all OFF, over all ON minus all
   OFF (ON: the motion's activation set where the problem gives one).  A clutch that is

@@ -1,4 +1,4 @@
-"""Design metrics: relative energy density, islands, clutch junctions (method.md §7).
+"""Design metrics: relative energy density, islands, clutch junctions (docs/method/index.md, "The relative energy density").
 
 Relative energy density
     rho(g, d) = (E(x*(g, d), d) / A_d) / (E(x*(g, 1), 1) / A_all)

@@ -5,7 +5,7 @@ kept side of every :class:`Cut` that applies to its bone. A cut is the plane thr
 ``joint_a + t (joint_b - joint_a)`` with normal ``joint_b - joint_a`` (rest joints); it
 keeps the side of ``keep`` (``"a"`` or ``"b"``) and applies only to faces whose dominant
 bone is in ``applies_to`` (so a sleeve cut does not slice the torso). Attachment rings
-(faces glued to the body, method.md section 3) sit at the boundary loops made by the cuts
+(faces glued to the body, docs/method/index.md, "The garment") sit at the boundary loops made by the cuts
 named in ``attach``; regions ending at an excluded bone (neck, hands) are free openings.
 """
 

@@ -2,7 +2,7 @@
 interpolation, sensitivities, filter, history, area schedule and the add/remove update.
 
 All functions are pure; the loop in :mod:`kgarment.optimize.loop` strings them together.
-Design variable x_e in {x_min, 1} per garment triangle (soft-kill, method.md section 6).
+Design variable x_e in {x_min, 1} per garment triangle (soft-kill, docs/method/index.md, "BESO").
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def interpolate(x: np.ndarray, y0: float | np.ndarray, y1: float | np.ndarray, p
 
 def sensitivity_factor(x: np.ndarray, y0: float, y1: float, p: float = PENALTY) -> np.ndarray:
     """(m,) factor turning element energy density into the BESO sensitivity:
-    x^(p-1) (Y1 - Y0) / Y(x), which is 1 - Y0/Y1 for reinforced faces (method.md §6)."""
+    x^(p-1) (Y1 - Y0) / Y(x), which is 1 - Y0/Y1 for reinforced faces (docs/method/index.md, "BESO")."""
     return np.power(x, p - 1.0) * (y1 - y0) / interpolate(x, y0, y1, p)
 
 

@@ -26,7 +26,7 @@ sensitivities (unless the previous iteration failed too: the same update would r
 same design and failure), and its objective does not count towards convergence.
 
 Iteration 0 is the fully reinforced garment, so its energies are the references of the
-relative energy density rho (method.md section 7) and of the objective.  It starts from the
+relative energy density rho (docs/method/index.md, "The relative energy density") and of the objective.  It starts from the
 garment as put on: the skin-tight garment, or on a subdivided garment of more than
 ``NESTED_VERTICES`` vertices its equilibria one subdivision level down
 (:func:`kgarment.case.levels.put_on`).

@@ -1,4 +1,4 @@
-"""Design objectives: how per-state sensitivities and energies combine (method.md §6).
+"""Design objectives: how per-state sensitivities and energies combine (docs/method/index.md, "BESO").
 
 ``active``     the paper's: maximise E_ON - E_OFF per motion; both sensitivities divided by
                that motion's maximum ON sensitivity, summed over motions.  ON is the

@@ -1,6 +1,6 @@
 """The paper's design experiments, their resolutions, and the runs behind them.
 
-Every experiment is one example problem under ``examples/`` (its budget from method.md)
+Every experiment is one example problem under ``examples/`` (its budget from the paper; docs/method/index.md)
 with the paper's numbers beside it.  A resolution overrides the garment subdivision and,
 for the quick ones, the BESO step sizes:
 

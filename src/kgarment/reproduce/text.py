@@ -185,7 +185,7 @@ def short_words(doc: dict, short: list[tuple[float, str, str]]) -> str:
     return " Where we fall more than 2x short, see the experiment below; " + "; ".join(parts) + "."
 
 
-PAPER_SHIRT_FACES = 56384  # the paper's shirt mesh (method.md)
+PAPER_SHIRT_FACES = 56384  # the paper's shirt mesh (docs/method/index.md)
 
 
 def resolution_words(doc: dict) -> str:

@@ -3,7 +3,7 @@
 A clutch strip is held on the garment by its 6 anchor springs (3 at each end; its other
 centre-line vertices are tied only weakly, ``sim.model``).  The force the garment exerts
 on the strip through the anchors of one end is what a load cell put in place of the
-clutch measures (the paper's physical test, method.md section 9).  With ``F_A``, ``F_B``
+clutch measures (the paper's physical test, docs/method/index.md, "Judging a design as a garment").  With ``F_A``, ``F_B``
 (N) those forces at the start and the end, and ``u_A``, ``u_B`` the strip's directions at
 its ends (unit, pointing from the start towards the end along the deformed centre
 line), a strip in tension is pulled outwards at both ends, so its tension is::

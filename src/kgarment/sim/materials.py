@@ -1,6 +1,6 @@
 """Material presets and the design / activation interpolations (SI units).
 
-Two presets (``method.md`` section 4):
+Two presets (the method page (docs/method/index.md, "Energies")):
 
 ========================  ======================  ===========================
 material                  ``paper`` (default)     ``reference``
