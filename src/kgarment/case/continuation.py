@@ -11,6 +11,7 @@ import logging
 
 import numpy as np
 
+from kgarment.case.keys import fraction_name
 from kgarment.case.setup import Case
 from kgarment.sim import SimState, SolverOptions, StateResult
 
@@ -47,7 +48,7 @@ def activation_continuation(case: Case, design: np.ndarray, states: list[SimStat
     for k, f in enumerate(CONTINUATION):
         todo = [i for i in range(len(states)) if not (k == 0 and offs[i] is not None)]
         steps = [states[i] if f == 1.0 else SimState.create(
-            states[i].motion, f * np.asarray(states[i].activation, dtype=np.float64), name=f"{states[i].name}@{f:g}")
+            states[i].motion, f * np.asarray(states[i].activation, dtype=np.float64), name=fraction_name(states[i].name, f))
             for i in todo]
         done = dict(zip(todo, case.solve(design, steps, warm_start=[xs[i] for i in todo], options=options))) \
             if todo else {}

@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 
 from kgarment.body.motions import Motion as BodyMotion
+from kgarment.case.keys import early_motion, frame_motion
 from kgarment.errors import KgarmentError
 from kgarment.sim import garment_motions
 
@@ -31,7 +32,7 @@ def frame_motions(problem, motions, frames: int, rest: bool = False,
     for name in motions:
         for i in range(1, frames + 1):
             t = i / frames
-            label = f"{name}@{t:.3f}"
+            label = frame_motion(name, t)
             poses.append(BodyMotion(label, (lib[name].at(t),)))
             index.append((label, name, t))
     if rest and motions:
@@ -74,7 +75,7 @@ def objective_shares(early, weights) -> dict[str, float]:
 
 def early_name(motion: str, t: float) -> str:
     """The design state name of ``motion`` at the share ``t`` of its movement."""
-    return f"{motion}@{t:.2f}"
+    return early_motion(motion, t)
 
 
 def _posed(problem, poses, attached=None) -> dict:

@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from kgarment.case.keys import Start, level_name
 from kgarment.case.values import design_values
 from kgarment.garment.topology import midpoint_subdivide
 from kgarment.problem import Problem
@@ -101,14 +102,15 @@ class Coarser:
     prolong: sp.csr_matrix
 
 
-def states_down(coarser: Coarser, states: list[SimState], tag: str = "") -> tuple[list[int], list[SimState]]:
+def states_down(coarser: Coarser, states: list[SimState],
+                start: Start | None = None) -> tuple[list[int], list[SimState]]:
     """The ``states`` (of the level above ``coarser``) that the coarser level has: their
     indices, and each as that level's state (the same motion, activation and name, with
-    ``@level<L>`` and ``tag`` appended)."""
+    ``@level<L>`` and ``start``'s tag appended: :func:`kgarment.case.keys.level_name`)."""
     low = coarser.case
     idx = [i for i, s in enumerate(states) if s.motion.name in low.motions]
     return idx, [dataclasses.replace(states[i], motion=low.motions[states[i].motion.name],
-                                     name=f"{states[i].name.split('@level')[0]}@level{coarser.level}{tag}")
+                                     name=level_name(states[i].name, coarser.level, start))
                  for i in idx]
 
 

@@ -18,8 +18,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from kgarment import constants
+from kgarment.case.keys import Kind, StateKey, format_label
 from kgarment.case.levels import Coarser, level_problem, vertex_map
-from kgarment.case.states import LOCK, SOLO, StateKey, states_needed
+from kgarment.case.states import LOCK, SOLO, states_needed
 from kgarment.case.store import shared_store
 from kgarment.case.wearers import ClutchEnds, Wearer, clutch_ends, wearer_motions
 from kgarment.errors import KgarmentError
@@ -37,7 +38,7 @@ from kgarment.sim import Motion, SimModel, SimState, SolverOptions, garment_moti
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Case", "LOCK", "SOLO", "StateKey", "activation_vectors", "case_from_problem", "protected_faces"]
+__all__ = ["LOCK", "SOLO", "Case", "StateKey", "activation_vectors", "case_from_problem", "protected_faces"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -197,18 +198,20 @@ class Case:
         out = []
         for name in motions or self.motions:
             for s in states_needed(self.objective):
-                g = self.on_activation(name) if s == "on" else np.zeros(self.n_clutches)
-                out.append(((name, s), SimState.create(self.motions[name], g, name=f"{name}[{s}]")))
+                key = StateKey(name, s)
+                g = self.on_activation(name) if key.kind is Kind.ON else np.zeros(self.n_clutches)
+                out.append((key, SimState.create(self.motions[name], g, name=key.name)))
             if self.objective == "active" and self.lockout > 0:
                 seen = [self.on_activation(name)]  # each other set once (an early pose shares its motion's)
                 for other in self.motions:
                     g = self.on_activation(other)
                     if not any(np.array_equal(g, h) for h in seen) and self._same_wearer(name, other):
                         seen.append(g)
-                        label = f"{LOCK}{other}"
-                        out.append(((name, label), SimState.create(self.motions[name], g, name=f"{name}[{label}]")))
+                        key = StateKey.lock(name, other)
+                        out.append((key, SimState.create(self.motions[name], g, name=key.name)))
             for label, g in self.solo_activations(name):
-                out.append(((name, label), SimState.create(self.motions[name], g, name=f"{name}[{label}]")))
+                key = StateKey(name, label)
+                out.append((key, SimState.create(self.motions[name], g, name=key.name)))
         return out
 
     def _same_wearer(self, a: str, b: str) -> bool:
@@ -226,7 +229,7 @@ class Case:
         for k in on:
             g = np.zeros(self.n_clutches)
             g[k] = own[k]
-            out.append((f"{SOLO}{self.model.clutches[k].name}", g))
+            out.append((format_label(Kind.SOLO, self.model.clutches[k].name), g))
         return out
 
 def case_from_problem(problem: Problem, body, garment: Garment, strips, *, solver: str = "evaluate",

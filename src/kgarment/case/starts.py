@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kgarment.case.keys import Start, started
 from kgarment.case.levels import put_on
 from kgarment.case.setup import Case
 from kgarment.sim import SimState, StateResult
@@ -71,7 +72,7 @@ def solve_two_starts(case: Case, design: np.ndarray, states: list[SimState], sta
     solver options unless given."""
     n = len(states)
     worn = put_on(case, design, list(states))
-    skin = [dataclasses.replace(s, name=f"{s.name}@{'skin-tight' if w is None else 'put-on'}")
+    skin = [dataclasses.replace(s, name=started(s.name, Start.SKIN_TIGHT if w is None else Start.PUT_ON))
             for s, w in zip(states, worn)]
     both = case.solve(design, list(states) + skin, warm_start=list(starts) + worn, options=options)
     return both[:n], [dataclasses.replace(r, name=s.name) for r, s in zip(both[n:], states)]

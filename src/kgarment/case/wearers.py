@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kgarment.case.keys import split_wearer, wearer_motion
 from kgarment.case.transfer import clutches_on, garment_on
-from kgarment.constants import BODY_SEP
 from kgarment.garment.topology import triangle_areas
 from kgarment.problem import Problem, build_body, build_model, clutch_specs
 from kgarment.sim import SimModel, garment_motions
@@ -71,13 +71,12 @@ def clutch_ends(model: SimModel) -> tuple[ClutchEnds, ...]:
 
 def wearer_key(motion: str, body: str) -> str:
     """The state name of ``motion`` on wearer ``body``: ``MOTION@BODY``."""
-    return f"{motion}{BODY_SEP}{body}"
+    return wearer_motion(motion, body)
 
 
 def split_key(key: str) -> tuple[str, str | None]:
     """(motion, wearer) of a motion key (wearer None for a one-body design's)."""
-    motion, sep, body = key.partition(BODY_SEP)
-    return motion, (body if sep else None)
+    return split_wearer(key)
 
 
 def on_phenotype(problem: Problem, phenotype) -> Problem:

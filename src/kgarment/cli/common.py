@@ -8,6 +8,7 @@ import math
 from contextlib import contextmanager
 
 from kgarment import constants as C
+from kgarment.case.keys import RHO, Kind, StateKey, state_column
 from kgarment.errors import KgarmentError
 
 DEFAULT_PROBLEM_HELP = "problem file (TOML); default: the built-in three-motion shirt"
@@ -201,8 +202,11 @@ def parse_activation(text: str, n_clutches: int) -> tuple[float, ...]:
 
 def rho_line(row: dict, motions) -> str:
     """One line for a metrics row: area, objective, rho ON/OFF per motion."""
-    rho = "  ".join(f"{m} {row.get(f'rho[{m}:on]', row.get(f'rho[{m}:none]', float('nan'))):.2f}"
-                    + (f"/{row[f'rho[{m}:off]']:.2f}" if f"rho[{m}:off]" in row else "") for m in motions)
+    def col(m: str, kind: Kind) -> str:
+        return state_column(RHO, StateKey.of(m, kind))
+
+    rho = "  ".join(f"{m} {row.get(col(m, Kind.ON), row.get(col(m, Kind.NONE), float('nan'))):.2f}"
+                    + (f"/{row[col(m, Kind.OFF)]:.2f}" if col(m, Kind.OFF) in row else "") for m in motions)
     return f"area {100 * row['area']:5.1f}%  objective {row['objective']:8.4f}  rho {rho}"
 
 

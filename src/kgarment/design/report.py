@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.case.keys import Kind, parse_label
 from kgarment.case.values import design_values
 from kgarment.design.run import progress_plot
 from kgarment.io import atomic_save_npz, atomic_write_bytes, atomic_write_text, write_ply
@@ -100,6 +101,7 @@ def write_equilibrium(out: Path, stem: str, body_vertices: np.ndarray, body_face
 def _state_title(state: str) -> str:
     """A state label in words: "on", "off", "as in arms_raise" for a lock state, "upper_back
     only" for a solo state."""
-    if state.startswith("lock:"):
-        return f"as in {state.split(':', 1)[1]}"
-    return f"{state.split(':', 1)[1]} only" if state.startswith("solo:") else state
+    kind, which = parse_label(state)
+    if kind is Kind.LOCK:
+        return f"as in {which}"
+    return f"{which} only" if kind is Kind.SOLO else state

@@ -25,6 +25,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from kgarment.case.keys import RHO, Kind, StateKey, state_column
 from kgarment.design.run import ranked_iterations
 from kgarment.optimize.objective import combined_objective, objective_terms
 
@@ -40,8 +41,8 @@ def along_run(row: dict, res) -> dict[str, dict]:
     evaluated one is at least (1 - :data:`UNREACHED`) of the run's}."""
     out = {}
     for s in res.states:
-        key = f"rho[{s.motion}:on]"
-        if s.state == "on" and key in row:
+        key = state_column(RHO, StateKey.on(s.motion))
+        if s.key.kind is Kind.ON and key in row:
             out[s.motion] = {"run": float(row[key]), "evaluated": float(s.rho),
                              "reached": bool(s.rho >= (1.0 - UNREACHED) * float(row[key]))}
     return out

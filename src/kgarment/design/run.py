@@ -22,6 +22,15 @@ from pathlib import Path
 
 import numpy as np
 
+from kgarment.case.keys import (
+    RHO,
+    Kind,
+    checkpoint_key,
+    parse_checkpoint_key,
+    state_column,
+    state_columns,
+    state_text,
+)
 from kgarment.case.values import design_values
 from kgarment.constants import SIM_MODEL, X_MIN, target_reached
 from kgarment.errors import KgarmentError
@@ -179,7 +188,7 @@ def save_checkpoint(run: Path, st: LoopState) -> None:
         has_alpha=np.array(st.alpha_prev is not None),
         alpha_prev=st.alpha_prev if st.alpha_prev is not None else np.zeros(0),
         warm_names=np.array(names, dtype=str), objectives=np.array(st.objectives, dtype=np.float64),
-        ref_keys=np.array(["|".join(k) for k in ref_keys], dtype=str),
+        ref_keys=np.array([checkpoint_key(k) for k in ref_keys], dtype=str),
         ref_values=np.array([st.reference[k] for k in ref_keys], dtype=np.float64),
         ref_clutch=np.array([st.reference_stored[k].clutch_energy for k in ref_keys], dtype=np.float64),
         metrics=np.frombuffer(text.encode(), np.uint8), done=np.array(st.done),
@@ -250,7 +259,7 @@ def check_model(run: Path) -> None:
 
 def _state_from(z: dict) -> LoopState:
     names = [str(n) for n in z["warm_names"]]
-    keys = [tuple(str(k).split("|")) for k in z["ref_keys"]]
+    keys = [parse_checkpoint_key(k) for k in z["ref_keys"]]
     m = int(z["n_faces"])
     designs = [np.unpackbits(row)[:m].astype(bool) for row in z["designs"]]
     return LoopState(
@@ -316,12 +325,13 @@ def progress_plot(run: Path, rows: list[dict]) -> Path:
 
     it = [r["iteration"] for r in rows]
     fig, ax = plt.subplots(figsize=(7, 4), dpi=100)
-    keys = [k for k in rows[0] if k.startswith("rho[")]
+    keys = list(state_columns(rows[0], RHO))
     taken_back = [r for r in rows if r.get("rejected")]  # steps the guard took back: markers, off the lines
     kept = [r for r in rows if not r.get("rejected")]
-    for k in keys:
-        style = "--" if k.endswith(":off]") else "-"
-        (line,) = ax.plot([r["iteration"] for r in kept], [r.get(k, np.nan) for r in kept], style, label=k[4:-1])
+    for key in keys:
+        k = state_column(RHO, key)
+        style = "--" if key.kind is Kind.OFF else "-"
+        (line,) = ax.plot([r["iteration"] for r in kept], [r.get(k, np.nan) for r in kept], style, label=state_text(key))
         if taken_back:
             ax.plot([r["iteration"] for r in taken_back], [r.get(k, np.nan) for r in taken_back], "x",
                     color=line.get_color(), alpha=0.6)

@@ -53,6 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kgarment.case.continuation import activation_continuation
+from kgarment.case.keys import Kind, Start, StateKey, key_of
 from kgarment.case.levels import prolong, put_on, restrict, states_down
 from kgarment.case.setup import Case, case_from_problem
 from kgarment.case.starts import (
@@ -61,7 +62,6 @@ from kgarment.case.starts import (
     solve_two_starts,
     with_known,
 )
-from kgarment.case.states import StateKey
 from kgarment.case.store import design_digest, state_digest
 from kgarment.errors import Cancelled, KgarmentError, unknown
 from kgarment.evaluate.loads import LoadReport, clutch_loads
@@ -98,7 +98,7 @@ class StateEvaluation:
 
     @property
     def key(self) -> StateKey:
-        return (self.motion, self.state)
+        return StateKey(self.motion, self.state)
 
     @property
     def multistable(self) -> bool:
@@ -215,8 +215,8 @@ class Evaluator:
         if len(g) != self.case.n_clutches:
             raise KgarmentError(f"clutch activation has {len(g)} values for {self.case.n_clutches} clutches")
         label = label or ",".join(f"{a:g}" for a in g)
-        return [((m, label), SimState.create(self.case.motions[m], g, name=f"{m}[{label}]"))
-                for m in self.motion_names(motions)]
+        keys = [StateKey(m, label) for m in self.motion_names(motions)]
+        return [(k, SimState.create(self.case.motions[k.motion], g, name=k.name)) for k in keys]
 
     @functools.cached_property
     def coarser(self) -> Evaluator | None:
@@ -227,11 +227,11 @@ class Evaluator:
         return None if c is None else Evaluator(c.case, self.case.store)
 
     def down(self, design: np.ndarray, keyed: list[tuple[StateKey, SimState]],
-             tag: str = "") -> tuple[list[int], np.ndarray, list[tuple[StateKey, SimState]]]:
+             start: Start | None = None) -> tuple[list[int], np.ndarray, list[tuple[StateKey, SimState]]]:
         """``keyed`` states one level down: (the indices of those the coarser evaluator has,
         ``design`` (m,) restricted to its garment, those states keyed there the same way).
-        Only with a :attr:`coarser` evaluator."""
-        idx, down = states_down(self.case.coarser(), [s for _, s in keyed], tag)
+        Only with a :attr:`coarser` evaluator; ``start``: the tag of their names there."""
+        idx, down = states_down(self.case.coarser(), [s for _, s in keyed], start)
         return idx, restrict(design, self.coarser.n_faces), [(keyed[i][0], s) for i, s in zip(idx, down)]
 
     def up(self, x: np.ndarray) -> np.ndarray:
@@ -247,7 +247,7 @@ class Evaluator:
         reference)."""
         starts: list = [None] * len(keyed)
         if self.coarser is not None:
-            idx, d, low = self.down(design, keyed, "@from-full")
+            idx, d, low = self.down(design, keyed, Start.FROM_FULL)
             if idx:
                 solved = self.coarser.case.solve(d, [s for _, s in low], warm_start=self.coarser.from_full(d, low))
                 for i, r in zip(idx, solved):
@@ -270,12 +270,12 @@ class Evaluator:
         todo = [(k, s) for k, s in keyed if k not in self._reference]
         if todo:  # with the OFF states the clutched ones start from (one state at a time: the studio)
             known = set(self._reference) | {k for k, _ in todo}
-            offs = {(k[0], "off") for k, s in todo if s.clutched} - known
+            offs = {StateKey.off(k[0]) for k, s in todo if s.clutched} - known
             todo += [(k, s) for k, s in self.case.states() if k in offs]
             states = [s for _, s in todo]
             done = self.case.solve(full, states, warm_start=put_on(self.case, full, states))
             self._reference.update({k: r for (k, _), r in zip(todo, done)})
-            off = {k[0]: self._reference[k] for k in self._reference if k[1] == "off" and self._reference[k].converged}
+            off = {k[0]: self._reference[k] for k in self._reference if key_of(k).kind is Kind.OFF and self._reference[k].converged}
             again = [(k, s) for k, s in todo if s.clutched and k[0] in off]
             if again:
                 second = self.case.solve(full, [s for _, s in again], warm_start=[off[k[0]].x for k, _ in again])
@@ -372,7 +372,7 @@ class Evaluator:
         clutched objectives only, else ``ev`` as it is)."""
         if not self.case.n_clutches or self.case.objective == "passive":
             return ev
-        known = {s.key: s.result for s in ev.states if s.state in ("on", "off")}
+        known = {s.key: s.result for s in ev.states if s.key.kind in (Kind.ON, Kind.OFF)}
         motions = list(dict.fromkeys(s.motion for s in ev.states))
         return dataclasses.replace(ev, loads=clutch_loads(self, np.asarray(design, dtype=np.float64), motions, known))
 

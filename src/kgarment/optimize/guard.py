@@ -34,11 +34,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from kgarment.case.keys import GAIN, TERM, Kind, motion_columns, parse_state_name
 from kgarment.constants import GUARD_AREA, GUARD_FLOOR, GUARD_RETRIES
 
-TERM = "term[{}]"  # metrics column: a motion's term of the objective
 REJECTED = "rejected"  # metrics column: the motions whose term collapsed ("" if accepted)
-GAIN = "gain[{}]"  # metrics column (with lockout): a motion's term without its lock: states' penalty
 
 
 def blinding(unconverged) -> list[str]:
@@ -46,7 +45,15 @@ def blinding(unconverged) -> list[str]:
     which the guard cannot judge a step: all but the ``lock:`` states, whose energy only the
     lockout penalty reads (:data:`GAIN` leaves it out)."""
     names = [n for n in unconverged.split(";") if n] if isinstance(unconverged, str) else list(unconverged)
-    return [n for n in names if "[lock:" not in n]
+    return [n for n in names if not _is_lock(n)]
+
+
+def _is_lock(name: str) -> bool:
+    """Whether the state named ``name`` is a ``lock:`` state (a name not of a state's form is not)."""
+    try:
+        return parse_state_name(name)[0].kind is Kind.LOCK
+    except ValueError:
+        return False
 
 
 def collapsed(terms: dict[str, float], before: dict[str, float], guard: float) -> list[str]:
@@ -78,21 +85,15 @@ def rejections_in_a_row(metrics) -> int:
     return n
 
 
-def _per_motion(row: dict, column: str) -> dict[str, float]:
-    """{motion: value} of a per-motion metrics column (:data:`TERM`, :data:`GAIN`) in a row."""
-    head = column.split("{")[0]
-    return {k[len(head):-1]: float(v) for k, v in row.items() if k.startswith(head)}
-
-
 def terms_of(row: dict) -> dict[str, float]:
     """{motion: term} recorded in a metrics row."""
-    return _per_motion(row, TERM)
+    return motion_columns(row, TERM)
 
 
 def paths_of(row: dict) -> dict[str, float]:
     """{motion: what the guard watches}: its :data:`GAIN` where the row has one (a run with
     lockout), else its term."""
-    return _per_motion(row, GAIN) or terms_of(row)
+    return motion_columns(row, GAIN) or terms_of(row)
 
 
 def guard_step(metrics, terms: dict[str, float], guard: float, removed: np.ndarray, guarded: np.ndarray | None,

@@ -42,17 +42,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kgarment.case.keys import (
+    ENERGY,
+    GAIN,
+    RHO,
+    TENSION,
+    TERM,
+    Kind,
+    Start,
+    StateKey,
+    is_started,
+    motion_column,
+    started,
+    state_column,
+)
 from kgarment.case.levels import put_on
 from kgarment.case.starts import MULTISTABLE, pick_equilibrium
-from kgarment.case.states import StateKey
 from kgarment.case.values import design_values
 from kgarment.evaluate.metrics import Stored, relative_energy_density, structure
 from kgarment.optimize.beso import converged, next_target, settled_ar, update_design
 from kgarment.optimize.connect import connect_design
 from kgarment.optimize.guard import (
-    GAIN,
     REJECTED,
-    TERM,
     blinding,
     boosted,
     guard_step,
@@ -95,7 +106,7 @@ WARM_MAX_RESIDUAL = 0.0
 # With ``skin_start`` the loop state's ``warm`` also keeps iteration 0's (the fully reinforced
 # garment's) equilibrium of each state under its name + FULL: every iteration solves from
 # it too, the evaluator's second start (kgarment.evaluate.evaluator).
-FULL = "@full"
+FULL = started("", Start.FULL)  # the suffix of those names
 
 
 @dataclass(frozen=True)
@@ -173,10 +184,10 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
     starts = None  # with skin_start: per state the better of the evaluator's two starts
     if setup.case.skin_start and st.warm:
         n = len(states)
-        full = [st.warm.get(s.name + FULL) for s in states]  # the evaluator's second start (FULL)
+        full = [st.warm.get(started(s.name, Start.FULL)) for s in states]  # the evaluator's second start (FULL)
         has = [i for i, x in enumerate(full) if x is not None]
-        extra = [dataclasses.replace(s, name=s.name + "@skin-tight") for s in states] + \
-            [dataclasses.replace(states[i], name=states[i].name + FULL) for i in has]
+        extra = [dataclasses.replace(s, name=started(s.name, Start.SKIN_TIGHT)) for s in states] + \
+            [dataclasses.replace(states[i], name=started(states[i].name, Start.FULL)) for i in has]
         both = setup.case.solve(st.design, states + extra, warm_start=warm + [None] * n + [full[i] for i in has],
                            options=opts)  # one batch: the workers share the solves
         starts = [dataclasses.replace(c, name=s.name) for s, c in zip(states, both[n:2 * n])]
@@ -228,7 +239,7 @@ def _continue_lower(setup: DesignSetup, design: np.ndarray, states: list[SimStat
     if not best:
         return results, []
     todo = sorted(best)
-    more = setup.case.solve(design, [dataclasses.replace(states[i], name=states[i].name + "@continued") for i in todo],
+    more = setup.case.solve(design, [dataclasses.replace(states[i], name=started(states[i].name, Start.CONTINUED)) for i in todo],
                        warm_start=[best[i].x for i in todo], options=opts)
     out = list(results)
     for i, r in zip(todo, more):
@@ -289,14 +300,14 @@ def metrics_row(setup: DesignSetup, st: LoopState, solved: Solved, reference: di
         **({"path_checked": solved.path_checked, "path_moved": ",".join(solved.path_moved)}
            if setup.beso.path_start else {}),
     }
-    row.update({TERM.format(m): v for m, v in terms.items()})
+    row.update({motion_column(TERM, m): v for m, v in terms.items()})
     if setup.case.lockout > 0 and setup.case.objective == "active":  # the guard's reading (kgarment.optimize.guard)
         gains = objective_terms(setup.case.objective, solved.energy, reference, list(setup.case.motions), 0.0, setup.case.balance)
-        row.update({GAIN.format(m): v for m, v in gains.items()})
-    row.update({f"rho[{k[0]}:{k[1]}]": relative_energy_density(design, setup.case.areas_of(k[0]), solved.stored[k],
-                                                               reference_stored[k], setup.case.clutch_area_of(k[0]))
+        row.update({motion_column(GAIN, m): v for m, v in gains.items()})
+    row.update({state_column(RHO, k): relative_energy_density(design, setup.case.areas_of(k[0]), solved.stored[k],
+                                                              reference_stored[k], setup.case.clutch_area_of(k[0]))
                 for k in solved.stored})
-    row.update({f"energy[{k[0]}:{k[1]}]": v for k, v in solved.energy.items()})
+    row.update({state_column(ENERGY, k): v for k, v in solved.energy.items()})
     row.update(tension_columns(setup, st.design, solved))
     return row
 
@@ -307,9 +318,9 @@ def tension_columns(setup: DesignSetup, design: np.ndarray, solved: Solved) -> d
     out = {}
     names = [c.name for c in setup.case.model.clutches]
     for key, state, r in zip(solved.keys, solved.states, solved.results):
-        if key[1] == "on" and names:
+        if StateKey(*key).kind is Kind.ON and names:
             t = clutch_tensions(setup.case.model_of(key[0]), design, state, r.x, solved.options)
-            out.update({f"tension[{key[0]}:{n}]": float(v) for n, v in zip(names, t)})
+            out.update({state_column(TENSION, (key[0], n)): float(v) for n, v in zip(names, t)})
     return out
 
 
@@ -351,11 +362,11 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
         if setup.beso.protected is not None:
             design[setup.beso.protected] = 1.0
     warm = st.warm if rejected else {
-        **{k: x for k, x in st.warm.items() if k.endswith(FULL)},
+        **{k: x for k, x in st.warm.items() if is_started(k, Start.FULL)},
         **{s.name: r.x if r.converged or r.convergence.residual <= WARM_MAX_RESIDUAL or s.name not in st.warm
            else st.warm[s.name] for s, r in zip(solved.states, solved.results)}}
     if setup.case.skin_start and st.iteration == 0:  # the fully reinforced garment's equilibria: a start of every iteration
-        warm.update({s.name + FULL: r.x for s, r in zip(solved.states, solved.results) if r.converged})
+        warm.update({started(s.name, Start.FULL): r.x for s, r in zip(solved.states, solved.results) if r.converged})
     return LoopState(st.iteration + 1, design, target, alpha, warm, objectives, reference, reference_stored,
                      st.designs + (st.design > 0.5,), st.metrics + (row,), done, guarded, accepted)
 

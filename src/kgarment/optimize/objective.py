@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from kgarment.case.keys import Kind, base_motion, kind_of
 from kgarment.case.states import states_needed
 from kgarment.errors import unknown
 from kgarment.problem.spec import COMBINE_NAMES, balance_weight
@@ -60,11 +61,11 @@ PRODUCT_FLOOR = 0.02  # combine = "product": a motion's term counts as at least 
 
 def _locks(values: dict, motion: str) -> list:
     """The ``lock:`` states of ``motion`` among the keys of ``values``."""
-    return [v for (m, s), v in values.items() if m == motion and s.startswith("lock:")]
+    return [v for (m, s), v in values.items() if m == motion and kind_of(s) is Kind.LOCK]
 
 
 def _solo_keys(values: dict, motion: str) -> list:
-    return [(m, s) for (m, s) in values if m == motion and s.startswith("solo:")]
+    return [(m, s) for (m, s) in values if m == motion and kind_of(s) is Kind.SOLO]
 
 
 def balance_weights(energy: dict[tuple[str, str], float], motion: str) -> dict[tuple[str, str], float]:
@@ -94,7 +95,7 @@ def _balance_value(energy: dict[tuple[str, str], float], motion: str) -> float:
 def _share(shares: dict[str, float], name: str) -> float:
     """The share of the design state ``name`` in ``shares``: its own, else its motion's (a
     wearer's ``MOTION@BODY`` takes MOTION's ``[design] weights``), else 1."""
-    return shares.get(name, shares.get(name.partition("@")[0], 1.0))
+    return shares.get(name, shares.get(base_motion(name), 1.0))
 
 
 def motion_weights(combine: str, terms: dict[str, float],

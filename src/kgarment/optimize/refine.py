@@ -26,9 +26,10 @@ import dataclasses
 
 import numpy as np
 
+from kgarment.case.keys import Start, is_started
 from kgarment.case.levels import parent_faces, vertex_map
 from kgarment.case.values import design_values
-from kgarment.optimize.loop import FULL, LoopState
+from kgarment.optimize.loop import LoopState
 from kgarment.optimize.setup import DesignSetup
 from kgarment.problem import Problem
 
@@ -48,7 +49,7 @@ def transfer(coarse_setup: DesignSetup, coarse: LoopState, fine_setup: DesignSet
     S = vertex_map(cm.garment_faces, cm.n_garment, fm.n_faces)
     warm = dict(fine.warm)
     for name, x in coarse.warm.items():
-        if name in warm and not name.endswith(FULL):  # the same state at both levels (the fully
+        if name in warm and not is_started(name, Start.FULL):  # the same state at both levels (the fully
             # reinforced garment's equilibria, a skin_start run's FULL starts, are the fine level's own)
             warm[name] = fm.initial_positions(S @ np.asarray(x)[: cm.n_garment])
     alpha = None if coarse.alpha_prev is None else np.asarray(coarse.alpha_prev)[parent]

@@ -19,6 +19,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
+from kgarment.case.keys import RHO, state_column, state_columns, state_text
 from kgarment.design import load_design_history
 from kgarment.errors import KgarmentError
 from kgarment.optimize import LoopState
@@ -66,7 +67,7 @@ class RunHistory:
         if not 0 <= k < len(self.metrics):
             return f"iteration {k}"
         row = self.metrics[k]
-        rho = ", ".join(f"{key[4:-1]} {v:.2f}" for key, v in row.items() if key.startswith("rho["))
+        rho = ", ".join(f"{state_text(key)} {v:.2f}" for key, v in state_columns(row, RHO).items())
         return (f"iteration {k}: area {100 * row.get('area', float('nan')):.1f}%, "
                 f"objective {row.get('objective', float('nan')):.4f}; rho {rho}")
 
@@ -124,8 +125,8 @@ def _body_text(b: BodySpec) -> str:
 def metric_series(rows: Sequence[dict]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """(iterations (K,), {label: (K,) values}) of the rho curves and the area share (%)."""
     it = np.array([r.get("iteration", k) for k, r in enumerate(rows)], dtype=np.float64)
-    keys = list(dict.fromkeys(k for r in rows for k in r if k.startswith("rho[")))
-    out = {k[4:-1]: np.array([r.get(k, np.nan) for r in rows], dtype=np.float64) for k in keys}
+    keys = list(dict.fromkeys(k for r in rows for k in state_columns(r, RHO)))
+    out = {state_text(k): np.array([r.get(state_column(RHO, k), np.nan) for r in rows], dtype=np.float64) for k in keys}
     out["area %"] = np.array([100 * r.get("area", np.nan) for r in rows], dtype=np.float64)
     return it, out
 
