@@ -497,7 +497,8 @@ def test_a_run_designed_under_another_simulation_model_is_not_resumed(tmp_path, 
     run.mkdir()
     (run / "problem.toml").write_text('[motions]\nuse = ["arms_raise"]\n')
     (run / "problem.txt").write_text("")
-    save_checkpoint(run, LoopState(0, np.ones(40), 1.0, None, {}, (), {}, {}, (), ()))
+    save_checkpoint(run, LoopState(iteration=0, design=np.ones(40), target=1.0, alpha_prev=None, warm={}, objectives=(),
+                                    reference={}, reference_stored={}, designs=(), metrics=()))
     check_model(run)
     with np.load(run / "checkpoint.npz") as z:
         assert int(z["sim_model"]) == SIM_MODEL

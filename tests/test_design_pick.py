@@ -58,8 +58,10 @@ def _evaluation(rhos: dict[str, float], off: float = 0.01):
 
     states = []
     for m, rho in rhos.items():
-        states += [StateEvaluation(m, "on", rho, rho, 1.0, True), StateEvaluation(m, "off", off, off, 1.0, True)]
-    return DesignEvaluation(np.ones(4, bool), tuple(states), 0.2, 3, 1, 4, 4)
+        states += [StateEvaluation(motion=m, state=s, rho=r, energy=r, energy_full=1.0, converged=True)
+                   for s, r in (("on", rho), ("off", off))]
+    return DesignEvaluation(design=np.ones(4, bool), states=tuple(states), area=0.2, islands=3, islands_with_clutches=1,
+                            clutch_ends_supported=4, clutch_ends=4)
 
 
 def test_a_final_design_whose_run_equilibrium_the_evaluator_does_not_reach_is_flagged():

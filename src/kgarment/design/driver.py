@@ -62,7 +62,7 @@ log = logging.getLogger(__name__)
 ATTACHMENTS = "attachments.npz"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class DesignRun:
     """An open run: its folder, the problem and everything built from it.
 
@@ -115,7 +115,7 @@ def open_run(problem: Problem | None, run, *, resume: bool = False, force: bool 
         replace_folder(run, lambda tmp: write_inputs(tmp, problem, body, garment, specs, custom_garment),
                        "run")
     st = resumed if resume else initial_state(setup)
-    return DesignRun(run, problem, body, garment, strips, setup, st)
+    return DesignRun(run=run, problem=problem, body=body, garment=garment, strips=strips, setup=setup, state=st)
 
 
 def run_inputs(run, problem: Problem | None = None) -> tuple[Problem, Body, Garment, tuple[ClutchStrip, ...]]:
@@ -195,7 +195,7 @@ def finish(dr: DesignRun, progress: Callable[[LoopState], None] | None = None,
     else:
         k, selection, evaluation, paths = best_iteration(st.metrics, p.target_area, p.er), None, None, []
     equilibria = None if evaluation is None else {s.key: s.result for s in evaluation.states}
-    paths = finish_run(dr.run, dr.setup, st, dr.body, dr.garment, list(dr.strips), k, equilibria) + paths
+    paths = finish_run(dr.run, dr.setup, st, dr.body, dr.garment, list(dr.strips), iteration=k, equilibria=equilibria) + paths
     return dataclasses.replace(dr, paths=tuple(paths), evaluation=evaluation, selection=selection)
 
 

@@ -72,7 +72,7 @@ from kgarment.sim import SimState, StateResult
 KEPT = 64  # design equilibria an Evaluator keeps (the most recently used; :meth:`Evaluator.solve_design`)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class StateEvaluation:
     """One (motion, state) of a design.
 
@@ -111,7 +111,7 @@ class StateEvaluation:
                 "from_path": self.from_path}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class DesignEvaluation:
     """A design on some motions: one StateEvaluation per (motion, state), and its shape.
 
@@ -401,11 +401,13 @@ class Evaluator:
             other = None if eq.other is None else \
                 relative_energy_density(design, areas, Stored.of(eq.other, clutched), sf, c_area)
             rows.append(StateEvaluation(
-                motion, state, rho, float(sd.face_energy[solid].sum() + sd.clutch_energy),
-                float(sf.face_energy.sum() + sf.clutch_energy), bool(rf.converged and eq.result.converged), other,
-                eq.from_path, eq.result, rf))
+                motion=motion, state=state, rho=rho, energy=float(sd.face_energy[solid].sum() + sd.clutch_energy),
+                energy_full=float(sf.face_energy.sum() + sf.clutch_energy),
+                converged=bool(rf.converged and eq.result.converged), other_rho=other, from_path=eq.from_path,
+                result=eq.result, reference=rf))
         shape = structure(case, design)
         return DesignEvaluation(
-            solid, tuple(rows), float(case.areas[solid].sum() / case.areas.sum()), shape["islands"],
-            shape["islands_with_clutches"], shape["clutch_ends_supported"], shape["clutch_ends"],
+            design=solid, states=tuple(rows), area=float(case.areas[solid].sum() / case.areas.sum()),
+            islands=shape["islands"], islands_with_clutches=shape["islands_with_clutches"],
+            clutch_ends_supported=shape["clutch_ends_supported"], clutch_ends=shape["clutch_ends"],
             by_wearer=shape.get("by_wearer"))

@@ -255,8 +255,8 @@ def connect_design(solid: np.ndarray, alpha: np.ndarray, areas: np.ndarray, targ
     total = areas.sum()
     area = areas[solid].sum() / total
     if area > target + 1e-12:
-        solid = _trim(graph, solid, root, protected, alpha, areas, (area - target) * total,
-                      lambda d: _held_ends(d, ends, graphs, adjacency, attached, loop_faces))
+        solid = _trim(graph, solid, root, protected, alpha, areas=areas, excess=(area - target) * total,
+                      holds=lambda d: _held_ends(d, ends, graphs, adjacency, attached, loop_faces))
         area = areas[solid].sum() / total
     grow = target - area
     while grow > 1e-12:

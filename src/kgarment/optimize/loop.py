@@ -109,7 +109,7 @@ WARM_MAX_RESIDUAL = 0.0
 FULL = started("", Start.FULL)  # the suffix of those names
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LoopState:
     """Where a run stands: what a checkpoint holds, enough to continue bit-identically.
 
@@ -140,7 +140,7 @@ class LoopState:
     accepted_alpha: dict[str, np.ndarray] | None = None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Solved:
     """Step 1's result: the equilibria of every state for the iteration's design.
 
@@ -170,7 +170,8 @@ class Solved:
 
 def initial_state(setup: DesignSetup) -> LoopState:
     """Iteration 0: the fully reinforced garment."""
-    return LoopState(0, np.ones(setup.case.model.n_faces), 1.0, None, {}, (), {}, {}, (), ())
+    return LoopState(iteration=0, design=np.ones(setup.case.model.n_faces), target=1.0, alpha_prev=None, warm={},
+                     objectives=(), reference={}, reference_stored={}, designs=(), metrics=())
 
 
 def solve(setup: DesignSetup, st: LoopState) -> Solved:
@@ -214,9 +215,10 @@ def solve(setup: DesignSetup, st: LoopState) -> Solved:
         s = Stored.of(r, setup.case.objective != "passive")
         stored[key] = s
         energy[key] = float(s.face_energy[st.design > 0.5].sum() + s.clutch_energy)
-    return Solved([k for k, _ in keyed], states, results, opts,
-                  [r.name for r in results if not r.converged], energy, stored, alpha,
-                  int(sum(r.convergence.iterations for r in both)), checked, tuple(moved))
+    return Solved(keys=[k for k, _ in keyed], states=states, results=results, options=opts,
+                  unconverged=[r.name for r in results if not r.converged], energy=energy, stored=stored, alpha=alpha,
+                  newton_iterations=int(sum(r.convergence.iterations for r in both)), path_checked=checked,
+                  path_moved=tuple(moved))
 
 
 def _continue_lower(setup: DesignSetup, design: np.ndarray, states: list[SimState], results: list[StateResult],
@@ -254,8 +256,9 @@ def sensitivities(setup: DesignSetup, st: LoopState, solved: Solved,
     :func:`combine_weights`; None: 1), filtered, averaged with the previous iteration's;
     the previous ones when a state did not converge (not twice in a row); protected faces
     on top."""
-    filt = setup.beso.filter_matrix @ combine_sensitivities(setup.case.objective, solved.alpha, list(setup.case.motions),
-                                                         setup.case.lockout, setup.case.balance, solved.energy, weights)
+    filt = setup.beso.filter_matrix @ combine_sensitivities(
+        setup.case.objective, solved.alpha, list(setup.case.motions), lockout=setup.case.lockout,
+        balance=setup.case.balance, energy=solved.energy, weights=weights)
     if setup.beso.params.history and st.alpha_prev is not None:
         filt = 0.5 * (filt + st.alpha_prev)
     bad = solved.unconverged
@@ -335,11 +338,12 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
     a = last_accepted(st.metrics)
     if setup.beso.guard > 0 and a is not None and not blinding(solved.unconverged) and not solved.path_moved:
         removed = st.designs[a] & ~(st.design > 0.5)
-        rejected, guarded = guard_step(st.metrics, paths_of(row), setup.beso.guard, removed, st.guarded, setup.case.areas,
-                                       st.target, st.accepted_alpha)
+        rejected, guarded = guard_step(st.metrics, paths_of(row), setup.beso.guard, removed, st.guarded,
+                                       areas=setup.case.areas, target=st.target, accepted_alpha=st.accepted_alpha)
     if setup.beso.guard > 0 and not rejected and not solved.unconverged:
-        accepted = motion_sensitivities(setup.case.objective, solved.alpha, list(setup.case.motions), setup.case.lockout,
-                                        setup.case.balance, solved.energy, combine_weights(setup, row))
+        accepted = motion_sensitivities(setup.case.objective, solved.alpha, list(setup.case.motions),
+                                        lockout=setup.case.lockout, balance=setup.case.balance, energy=solved.energy,
+                                        weights=combine_weights(setup, row))
     row[REJECTED] = ",".join(rejected)
     counts = setup.judged(st.iteration, st.target) and not (solved.unconverged or rejected)  # else NaN: not judged
     objectives = st.objectives + (row["objective"] if counts else float("nan"),)
@@ -356,9 +360,10 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
         at_target = sum(1 for r in st.metrics + (row,) if p.reached(r["area"]))
         design = update_design(base, rank, setup.case.areas, target, p, settled_ar(p, at_target))
         if p.connected and setup.case.ends:
-            design = design_values(connect_design(design > 0.5, alpha, setup.case.areas, target, setup.case.adjacency,
-                                                  setup.case.all_end_faces, setup.case.attached, setup.beso.loop_faces, guarded,
-                                                  setup.case.end_partners()))
+            design = design_values(connect_design(
+                design > 0.5, alpha, setup.case.areas, target, setup.case.adjacency, setup.case.all_end_faces,
+                attached=setup.case.attached, loop_faces=setup.beso.loop_faces, keep=guarded,
+                partners=setup.case.end_partners()))
         if setup.beso.protected is not None:
             design[setup.beso.protected] = 1.0
     warm = st.warm if rejected else {
@@ -367,8 +372,10 @@ def advance(setup: DesignSetup, st: LoopState, solved: Solved, filt: np.ndarray,
            else st.warm[s.name] for s, r in zip(solved.states, solved.results)}}
     if setup.case.skin_start and st.iteration == 0:  # the fully reinforced garment's equilibria: a start of every iteration
         warm.update({started(s.name, Start.FULL): r.x for s, r in zip(solved.states, solved.results) if r.converged})
-    return LoopState(st.iteration + 1, design, target, alpha, warm, objectives, reference, reference_stored,
-                     st.designs + (st.design > 0.5,), st.metrics + (row,), done, guarded, accepted)
+    return LoopState(iteration=st.iteration + 1, design=design, target=target, alpha_prev=alpha, warm=warm,
+                     objectives=objectives, reference=reference, reference_stored=reference_stored,
+                     designs=st.designs + (st.design > 0.5,), metrics=st.metrics + (row,), done=done, guarded=guarded,
+                     accepted_alpha=accepted)
 
 
 def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
@@ -379,7 +386,7 @@ def iterate(setup: DesignSetup, st: LoopState) -> LoopState:
         (st.reference, st.reference_stored)
     row = metrics_row(setup, st, solved, reference, reference_stored)
     filt = sensitivities(setup, st, solved, combine_weights(setup, row))
-    nxt = advance(setup, st, solved, filt, row, reference, reference_stored)
+    nxt = advance(setup, st, solved, filt, row, reference=reference, reference_stored=reference_stored)
     row["seconds"] = time.time() - t0
     log.debug("iteration %d: %s", row["iteration"], row)
     return nxt

@@ -170,7 +170,7 @@ def combine_sensitivities(kind: str, alpha: dict[tuple[str, str], np.ndarray], m
                           weights: dict[str, float] | None = None) -> np.ndarray:
     """(m,) combined sensitivity: the sum over motions of :func:`motion_sensitivities`."""
     total = 0.0
-    for v in motion_sensitivities(kind, alpha, motions, lockout, balance, energy, weights).values():
+    for v in motion_sensitivities(kind, alpha, motions, lockout, balance, energy=energy, weights=weights).values():
         total = total + v
     return np.asarray(total)
 
