@@ -17,29 +17,16 @@ iterations, and mapped up (nested iteration, :mod:`kgarment.case.levels`): the g
 put on is the state's equilibrium there from its own put-on start (:func:`put_on`), the
 start along the run's path the design's equilibrium there from that level's start along
 the path (:meth:`Evaluator.from_full`); the load states start from theirs
-(:func:`kgarment.evaluate.loads.coarse_starts`).  Measured on the three-motion shirt's design
-at subdivision 2 (2026-11-29, coarse-to-fine, 2 workers): the run's final evaluation took
-18.1 minutes with its renders, everything solved cold, against 50.6 (``kgarment evaluate``
-13.9 minutes with the fully reinforced garment's solves in the machine's store), rho ON
-3.156 / 2.346 / 1.675 against 3.164 / 2.352 / 1.682, every clutch share within 0.01 and
-tension within 3 N; at subdivision 1 111 s against about 200 s, rho within 0.3%.  A membrane without bending on a frictionless body can have
+(:func:`kgarment.evaluate.loads.coarse_starts`).  A membrane without bending on a frictionless body can have
 several equilibria (the garment settles in different places), and the two starts can
 end in different ones: the converged solution of lower total energy, the more stable one,
 is kept, and the other is reported when the two differ by more than ``MULTISTABLE``.  A
 state that converges from neither start goes on from the end nearer convergence for as
-many iterations again (measured on the three-motion shirt's design at subdivision 1,
-2026-11-28: arms raise and bend forward OFF, unconverged after 200 iterations and the
-rescue's 200 from each start, converged in 47 and 71 more, 17 s: the garment was still
-sliding, and the rescue then started again from the start; it now goes on from where a solve
-ran out of iterations, and converges them itself); a clutched state that has not converged
+many iterations again; a clutched state that has not converged
 then either is solved by :func:`activation_continuation`.  Equilibria found otherwise --
 the end of the motion solved from rest (``kgarment evaluate --path``,
 :func:`kgarment.evaluate.path.path_forces`), the one a wearer reaches -- compete with the two starts' (``known``): the lowest is kept
-and marked ``from_path``.  Measured on the two-motion sleeve at subdivision 1 (its final
-design, 2026-11-26): in arm flexion ON the two starts ended at 24.9 J, the motion from rest
-at 6.8 J (rho ON 0.99 against 0.02, below its rho OFF 0.03).  Measured on a tiny sleeve design
-(``tests/test_design_e2e.py``): the run's warm path ended at 0.455 J (rho ON 0.955), the
-skin-tight start at 0.444 J (rho ON 0.889).
+and marked ``from_path``.  The measurements behind the two starts: docs/notes/code.md.
 """
 
 from __future__ import annotations
@@ -262,10 +249,7 @@ class Evaluator:
         from the garment as put on (:func:`put_on`), and a clutched state also from its motion's OFF
         equilibrium (the garment put on, then the clutches switched on) where that is known;
         the second replaces the first where it is lower by more than :data:`MULTISTABLE`
-        (rho's denominator is then the stabler equilibrium, as the design's numerator is).
-        Measured on the main job's shirt at subdivision 0 with buckling strips (2026-11-26):
-        arms forward ON from skin-tight 49.98 J of total energy (38.3 J stored), from OFF
-        39.76 J (29.2 J stored); with the paper's strips the two agree within 0.1%."""
+        (rho's denominator is then the stabler equilibrium, as the design's numerator is)."""
         full = np.ones(self.n_faces)
         todo = [(k, s) for k, s in keyed if k not in self._reference]
         if todo:  # with the OFF states the clutched ones start from (one state at a time: the studio)

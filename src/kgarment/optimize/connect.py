@@ -3,11 +3,7 @@
 Plain BESO ranks faces by their (filtered) energy density and keeps the best ones up to the
 target area.  A thin link in series between a clutch end and the rest of the structure
 stores little energy per face, so BESO cuts it, although the cut takes the whole load path
-(and the clutch) out of service.  Measured on the main job (three-motion shirt,
-subdivision 0): at iteration 89 the two lower clutches carried arms raise (share 0.22 each,
-about 330 N), iterations 99-101 cut the pad joining them to the arm rings, and arms raise's
-ON - OFF energy fell from 38.7 to 21.2 J (objective 1.48 -> 1.16) with nothing to restore it;
-the run ended with the lower clutches on plain cloth, carrying nothing.  The paper names
+(and the clutch) out of service.  The paper names
 the properties its designs show: no islands of reinforcement, every clutch end on
 reinforcement, a load path through the clutches.
 
@@ -25,24 +21,16 @@ when it already does:
    (:func:`anchored`): the attachment faces, and parts of the proposal that close around
    the body (a band around an arm or the torso cannot slide off it, an open strip on a
    frictionless body can); only where the garment has neither, the root, the proposal's
-   most sensitive face (the root used to count as an anchor always: a proposal whose
-   armbands were open then came out joined in one part around the upper back, every clutch
-   end on it and nothing holding it, storing 0.02 J where the step before stored 14 J --
-   measured on the single-motion arms-forward shirt with 3% steps);
+   most sensitive face;
 2. every part holding such a path is joined to the root's part along the cheapest path
    (a path from a clutch end to an attachment face the proposal leaves plain would
-   otherwise be an island, and dropping it took the end off reinforcement: measured on
-   the single-motion arms-forward shirt, 2 of 6 ends were supported before, 6 of 6 after);
+   otherwise be an island, and dropping it would take the end off reinforcement);
    reinforcement not joined to the root through reinforcement and clutches (islands) is
    dropped;
 3. the area is brought back to the target: the lowest-ranked faces off the joining paths
    go first, in batches that never cut a protected face off the root's part nor a clutch
    end off what holds it (step 1's property: a batch that would is halved, a single face
-   that would stays), or the best-ranked faces next to the structure are added.  (Checking
-   only the root's part let the trim open the band an end sat on, as long as the end stayed
-   joined to the root through its own clutch: measured on the selective sleeve at
-   subdivision 0, the inner clutch's end was left on a two-face island every other
-   iteration and extension's rho ON swung between 0.00 and 0.49 for 90 iterations.)
+   that would stays), or the best-ranked faces next to the structure are added.
 """
 
 from __future__ import annotations

@@ -91,16 +91,8 @@ log = logging.getLogger(__name__)
 
 # The next iteration starts a state from this iteration's solution of it when that
 # converged, or when it did not but its scaled residual is at most this; otherwise from the
-# state's last accepted solution.  0 (the default): converged solutions only.
-#
-# Measured (A/B at preview resolution, sub 0, ER 3%, whole `kgarment reproduce` runs): with
-# 1.0 (unconverged solutions accepted as starts; Newton descends monotonically, so they
-# are below their start in energy) the runs need fewer Newton iterations (arms raise
-# -31%, bend forward -13%, sleeve -18%; arms raise 41 -> 3 iterations with an
-# unconverged state) but the designs were no better and in places worse: evaluated rho ON
-# arms raise 1.91 -> 1.29, arm flexion 0.23 -> 0.17, sleeve 0.26 / 1.49 -> 0.24 / 1.44,
-# bend forward 1.85 -> 1.86, arms forward and arm extension identical.  Quality first:
-# off by default.
+# state's last accepted solution.  0 (the default): converged solutions only (why:
+# docs/notes/code.md, "kgarment.optimize.loop").
 WARM_MAX_RESIDUAL = 0.0
 
 # With ``skin_start`` the loop state's ``warm`` also keeps iteration 0's (the fully reinforced
@@ -227,9 +219,7 @@ def _continue_lower(setup: DesignSetup, design: np.ndarray, states: list[SimStat
     than MULTISTABLE; Newton only descends, so a lower basin is there) is solved on from
     where it stopped, and kept if it converges lower: the evaluator, at its tolerance and
     with its rescues, finds that basin, so the run must not keep the higher equilibrium.
-    Measured on the arm-flexion sleeve (preview, 2026-11-28): the skin-tight start stopped at
-    200 Newton iterations in most iterations at the target area; the run's metrics said rho
-    ON 1.74 where the evaluator found 0.20.  ``others``: (state index, its solve from another
+    ``others``: (state index, its solve from another
     start).  Returns the results and the extra solves."""
     best: dict[int, StateResult] = {}
     for i, r in others:

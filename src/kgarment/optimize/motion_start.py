@@ -6,10 +6,8 @@ The check is :func:`kgarment.evaluate.path.path_forces` itself, ON states only: 
 rest equilibrium from the evaluator's starts, :data:`~kgarment.constants.PATH_FRAMES` frames
 each predicted from the ones before, skin friction holding each frame where the one before
 left the garment, the evaluator's two starts where a frame does not converge, all at the
-evaluator's tolerance (``min(tol, EVALUATION_TOL)``).  A cheaper check does not find what the
-evaluator finds: measured on the selective sleeve's design at 20% of the area (2026-11-29,
-docs/notes/selective.md, "Solved to 1e-2"), flexion's end stored 10.5 J in 5 frames at 1e-2,
-in 10 frames at 1e-3, and 7.1 J only in 10 frames at 1e-4, the evaluator's 7.0 J.
+evaluator's tolerance (``min(tol, EVALUATION_TOL)``): a cheaper check does not find what the
+evaluator finds.
 """
 
 from __future__ import annotations
@@ -32,10 +30,7 @@ def motion_ends(setup, design: np.ndarray, keyed, results: list, starts: list | 
     With ``starts`` (per state, the better of this iteration's solves from the evaluator's two
     starts; ``skin_start``) the state becomes what the evaluator reports: the lower of those
     and the motion's end (:func:`kgarment.case.starts.with_known`), not an equilibrium
-    only the loop's continuation from the iterations before reaches, higher or lower (measured
-    on the selective sleeve, 2026-11-29: continued from the motion's end of an iteration
-    before, the loop read flexion's rho ON 0.72 for designs whose motion from rest ends at 1.03,
-    docs/notes/selective.md).  Without, the end replaces ``results``' equilibrium (the same
+    only the loop's continuation from the iterations before reaches, higher or lower.  Without, the end replaces ``results``' equilibrium (the same
     order) where it is converged and lower by more than MULTISTABLE.  Returns (the results,
     the motions whose ON state changed by more than MULTISTABLE)."""
     from kgarment.case.starts import Equilibrium, pick_equilibrium, with_known
