@@ -24,20 +24,8 @@ walked out on the coarse garment), solved with the coarse level's own options an
 so a later evaluation of the run reads them back.  A design run's iteration 0 (the fully
 reinforced garment, the objective's reference) starts the same way: in a coarse-to-fine run
 the levels below have solved exactly those states in their own iteration 0, and the
-machine's store of fully reinforced garments hands them over.
-
-Measured (2026-11-29, the three-motion shirt's subdivision-2 design of
-``benchmarks/design.py --subdivisions 2`` (coarse-to-fine), one process, 1e-4, each state
-solved at level 0, then 1, then 2, against the skin-tight start at level 2 in the run's
-final evaluation): arms raise ON 55 s in all (142 iterations at level 2) against 118 s
-(290), and 26.54 J of total energy against 26.73 J; bend forward ON 72 s (177) against
-144 s (372), 4.743 J against 4.788 J; arms forward OFF 52 s (135, converged) against 165 s
-(400, not converged), 0.5385 J against 0.5393 J.  The nested start ended lower in all
-three: it is as much the garment as put on as the skin-tight one, and it lets the cloth
-settle before the fine detail holds it.  The same run's iteration 0 at level 2 (the fully
-reinforced garment at 1e-3, 2 workers): 10 s for the levels below and 47 s at level 2 (263
-Newton iterations) against 194 s from the skin-tight garment (1,177), all six states 0.05-0.9%
-lower in total energy.
+machine's store of fully reinforced garments hands them over (measured against the
+skin-tight start: docs/notes/code.md, "kgarment.case.levels").
 """
 
 from __future__ import annotations

@@ -6,9 +6,7 @@ tolerance (``[solver] evolution_tol``).  Where a state has several equilibria --
 holds against the bent elbow or turns about the arm -- that continuation can hold one the
 evaluator, solving the design from the garment as put on and from the fully reinforced
 garment's equilibrium to :data:`~kgarment.constants.EVALUATION_TOL`, does not reach: the
-run's best objective is then a number no user measures.  Measured on the selective sleeve
-(docs/notes/selective.md, "The reported iteration"): iteration 107 read flexion rho ON 1.093
-along the run, 0.563 evaluated (0.59 over the motion from rest).
+run's best objective is then a number no user measures.
 
 :func:`select_reported` walks the iterations at the target area whose states all converged
 in order of objective (:func:`kgarment.design.run.ranked_iterations`), evaluates each, and

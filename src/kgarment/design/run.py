@@ -121,8 +121,7 @@ def best_iteration(rows, target: float, er: float) -> int:
     step the guard took back (:mod:`kgarment.optimize.guard`) is never reported.  With ``[solver]
     path_start`` only the iterations whose ON states were also solved over the motion from
     rest count (``path_checked``): the others' objectives may be of an equilibrium the wearer
-    never reaches (measured on the two-motion sleeve at subdivision 1: the best objective at
-    an unchecked iteration, rho ON 1.03 in flexion, was 0.11 over the motion)."""
+    never reaches."""
     ranked = ranked_iterations(rows, target, er)
     return ranked[0] if ranked else int(rows[-1]["iteration"])
 

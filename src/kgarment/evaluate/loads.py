@@ -183,26 +183,7 @@ def activation_equilibria(evaluator, design: np.ndarray, keyed, known: dict) -> 
     and one that does not converge even so goes through the evaluator's two starts.  These solves
     have no rescue (a second solve with larger shifts, ``SolverOptions.rescue_shifts``) and
     do not warn about the states they leave unconverged: the two starts follow anyway (and
-    warn where they fail too).  Measured on the main job's design (2026-11-27): its one
-    unconverged load state (bend forward, the upper back clutch alone) wandered for 200
-    iterations and its rescue for 200 more (15 s) before the two starts converged it.
-    Measured on the three-motion shirt's design at subdivision 1 (2026-11-28, 136
-    iterations, the paper's strips): 7 of its 18 load states stopped unconverged after 200
-    iterations (residuals wandering between 0.01 and 1: the garment still sliding); going on
-    from where they stopped converged all 7 in 6-157 more (470 in all), to the energies that 400
-    iterations from the start give (within 7e-4 relative; the shares within 2e-4), instead
-    of the evaluator's two starts at its tolerance (``benchmarks/README.md``).  At
-    subdivision 2 (2026-11-29, the same shirt's design, 2 workers) 3 of the 18 (arms raise, one
-    clutch alone) still slid after those 400 iterations; the evaluator's two starts, which
-    first solve the fully reinforced garment in that activation, then solved them at 1e-4 in
-    22.6 minutes, converging only through their own continuation at the end.  Switched on in
-    steps at ``LOAD_TOL`` first, two of them converged in 5.5 minutes (5.673 and 5.760 J,
-    against 5.719 and 5.780 J before) and the third stopped at residual 0.14 at 12.610 J
-    (12.641 J converged before), so it still takes the two starts.  Started from their
-    equilibria one level down (since 2026-11-29) the 18 took 11.1 minutes of worker time
-    (2.1 more at the coarser levels), two of them (arms raise with the upper back clutch
-    alone, bend forward without the right lower one) went on from where they stopped, and
-    none needed the continuation or the two starts."""
+    warn where they fail too; measured: docs/notes/code.md, "kgarment.evaluate.loads")."""
     case = evaluator.case
     opts = dataclasses.replace(case.solver, tol=max(case.solver.tol, LOAD_TOL), rescue_shifts=0, on_fail="info")
     starts = [nearer_start(case, design, st, [known[(key[0], "on")].x, known[(key[0], "off")].x])
@@ -250,10 +231,7 @@ def coarse_starts(evaluator, design: np.ndarray, keyed) -> list[np.ndarray | Non
 def nearer_start(case, design: np.ndarray, state, starts: list[np.ndarray]) -> np.ndarray:
     """Of ``starts`` (each (N, 3) positions, m), the one where ``state``'s energy is lowest
     for ``design`` (m,): a clutch that carries nothing switched on alone leaves the garment
-    near its all-OFF equilibrium, one switched off alone near its all-ON one.  Measured on
-    the main job's design (subdivision 0, 2026-11-25): its 18 one-clutch states took 1,206
-    Newton iterations from the all-ON equilibria, 976 from the nearer start, and the two
-    lower clutches alone in arms forward settled 0.3 J lower (share 0.02 -> 0.00)."""
+    near its all-OFF equilibrium, one switched off alone near its all-ON one."""
     prob = prepare_state(case.model_of(state.motion.name), design, state, case.solver)
     energies = [prob.evaluate(torch.as_tensor(np.asarray(x, dtype=np.float64), device=prob.device), order=0,
                               check=False)[0] for x in starts]

@@ -375,9 +375,7 @@ def predicted(model, before: list, after) -> np.ndarray | None:
     before it, ``before`` [(x (N, 3), sim Motion)], oldest first: none -> None (the
     skin-tight garment); one -> it carried with the body (:func:`carried`); two -> the secant
     predictor of path following: the later one carried, plus how the garment moved against
-    the body over the step between them (carried to ``after`` too).  Measured on the main
-    job's design (2026-11-27, 10 frames, subdivision 0): the frames after the second took
-    25 Newton iterations each instead of 38 from the carried equilibrium alone."""
+    the body over the step between them (carried to ``after`` too)."""
     if not before:
         return None
     x1, m1 = before[-1]

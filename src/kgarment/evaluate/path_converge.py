@@ -3,11 +3,8 @@
 With skin friction the state at the end of a motion depends on the path taken, and the
 path is solved in frames (:func:`kgarment.evaluate.path.path_forces`): a frame holds the
 garment where the frame before left it, so a coarse step can carry a held equilibrium past
-the point where, moved on more gently, the garment slips.  Measured on the selective
-sleeve's design at 20% of the area (docs/notes/selective.md, "Frames of the motion from
-rest"): flexion's rho ON read 1.09 over 10 frames, 0.80 over 20 and 0.77 over 40 (the
-garment held to t = 0.5 and slipped in the next twentieth), while extension read 1.04 over
-10 and 20.
+the point where, moved on more gently, the garment slips (measured: docs/notes/selective.md,
+"Frames of the motion from rest").
 
 :func:`converged_path` therefore solves each motion over ``frames`` frames, then twice as
 many, and so on, until two frame counts in a row agree: at every frame the coarser path

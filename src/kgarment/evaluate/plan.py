@@ -25,10 +25,7 @@ Equilibria come from the one design evaluator (ON and all OFF from its two start
 nearer of the ON and OFF equilibria, :func:`kgarment.evaluate.loads.activation_equilibria`),
 so the ON and all-OFF energies are those of ``kgarment evaluate``.  A motion's own
 activation set is its ON state; another motion's set is solved like the evaluator's
-``lock:`` states (two starts, the lower kept): on the default-resolution selective sleeve
-(2026-11-26) the inner clutch alone in flexion, started from the nearer equilibrium,
-settled at 0.79 of the all-ON resistance where the evaluator's lock row kept an
-equilibrium at rho 0.07 (its other start's at 0.96): two answers for one state.  With
+``lock:`` states (two starts, the lower kept), so that one state has one answer.  With
 ``known`` (the ends of the motion from rest, ``kgarment plan --path K`` and the
 reproduction) they compete with the two starts by the evaluator's rule
 (:func:`kgarment.case.starts.with_known`), as in ``kgarment evaluate --path K``; every
