@@ -150,6 +150,7 @@ def cmd_sizes(args) -> int:
                             f"[{{name = ...}}, ...], e.g. the example {SIZES_EXAMPLE})")
     motions = list(problem.motions)  # run_sizes checks --out before any work
     print(f"wearers: {', '.join(problem.body.names)}; motions: {', '.join(motions)}; runs in {args.out}/runs")
+    from kgarment.case.keys import wearer_motion
     from kgarment.optimize.beso import expected_iterations
 
     total = expected_iterations(problem.design.beso)
@@ -158,7 +159,7 @@ def cmd_sizes(args) -> int:
     def progress(name):  # a progress bar per design, each closed when the next one starts
         bars.close()
         print(f"design {name}: " + ("every wearer at once" if name == "all" else f"for {name} alone"))
-        keys = motions if name != "all" else [f"{m}@{n}" for n in problem.body.names for m in motions]
+        keys = motions if name != "all" else [wearer_motion(m, n) for n in problem.body.names for m in motions]
         return bars.enter_context(design_progress(total, 0, keys[:3], args.quiet))
 
     try:
