@@ -14,11 +14,8 @@ MAX_FIELDS = 8
 # (file under src/kgarment, callee): calls still passing more than 6 positional arguments.
 # Foreign functions (the PARDISO library) and logging's formatting arguments may keep theirs.
 KNOWN_CALLS = {
-    ("case/setup.py", "wearer_motions"),
-    ("case/wearers.py", "Wearer"),
     ("cli/simulate.py", "write_equilibrium"),
     ("clutch/walk.py", "SurfacePath"),
-    ("evaluate/loads.py", "ClutchLoad"),
     ("evaluate/path.py", "PathFrame"),
     ("evaluate/path.py", "_anchor_target"),
     ("evaluate/path.py", "_jump_repairs"),

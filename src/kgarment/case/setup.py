@@ -256,8 +256,8 @@ def case_from_problem(problem: Problem, body, garment: Garment, strips, *, solve
     activation = activation_vectors(problem, [c.name for c in model.clutches])
     wearers = None
     if problem.body.phenotypes:
-        motions, activation, wearers = wearer_motions(problem, body, garment, strips, model, motions, activation,
-                                                      specs)
+        motions, activation, wearers = wearer_motions(problem, body, garment, strips, model, motions,
+                                                      activation=activation, specs=specs)
     if early and d.early:  # the beginnings of motions: more states of the objective
         from kgarment.case.frames import early_motions, early_name
 

@@ -119,5 +119,5 @@ def wearer_motions(problem: Problem, body, garment, strips, model, motions: dict
             out_m[key] = dataclasses.replace(ms[m], name=key)
             if m in activation:
                 out_a[key] = np.asarray(activation[m])
-            out_w[key] = Wearer(name, m, mdl, areas, c_area, b, clutch_ends(mdl))
+            out_w[key] = Wearer(name, m, mdl, areas, c_area, body=b, ends=clutch_ends(mdl))
     return out_m, out_a, out_w

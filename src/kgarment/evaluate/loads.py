@@ -276,8 +276,8 @@ def clutch_loads(evaluator, design: np.ndarray, motions=None, known: dict | None
                 if (m, k) in without:
                     needed = (e_on - known[without[(m, k)]].total_energy) / gain
             h = float(hold[k]) if math.isfinite(hold[k]) else None
-            load = ClutchLoad(m, name, float(share), float(tension[k]), False, h, slides(tension[k], hold[k]),
-                              float(needed))
+            load = ClutchLoad(m, name, float(share), float(tension[k]), False, h, slipping=slides(tension[k], hold[k]),
+                              needed=float(needed))
             loads.append(dataclasses.replace(load, loaded=bool(load.effect >= LOADED_SHARE)))
     return LoadReport(tuple(loads), tuple(garment))
 
