@@ -16,12 +16,6 @@ MAX_FIELDS = 8
 KNOWN_CALLS = {
     ("cli/simulate.py", "write_equilibrium"),
     ("clutch/walk.py", "SurfacePath"),
-    ("evaluate/path.py", "PathFrame"),
-    ("evaluate/path.py", "_anchor_target"),
-    ("evaluate/path.py", "_jump_repairs"),
-    ("evaluate/path.py", "_resolve_jumps"),
-    ("evaluate/plan.py", "Plan"),
-    ("evaluate/plan.py", "SetResult"),
     ("fabricate/annotate.py", "ClutchNote"),
     ("fabricate/bom.py", "_row"),
     ("fabricate/cleanup.py", "CleanupResult"),

@@ -155,7 +155,7 @@ class PathReport:
         clutches = tuple(doc["clutches"])
         frames = tuple(PathFrame(f["motion"], f["state"], float(f["t"]), float(f["energy_J"]),
                                  tuple(float(f["tension_N"][c]) for c in clutches), bool(f["converged"]),
-                                 bool(f.get("resolved", False))) for f in doc["frames"])
+                                 resolved=bool(f.get("resolved", False))) for f in doc["frames"])
         hold = tuple((m, tuple(float(h[c]) for c in clutches)) for m, h in doc.get("holding_N", {}).items())
         return cls(clutches, frames, hold)
 
@@ -353,8 +353,8 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
         solved_states.update({k: (st, r.x) for k, st, r in zip(keys, states, solved)})
     resolved: set = set()
     if model.friction == 0.0:  # with skin friction the state depends on the history: the frames stand
-        resolved = _anchor_target(evaluator, design, motions, frames, by_motion, state, results)
-        resolved |= _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results)
+        resolved = _anchor_target(evaluator, design, motions, frames, by_motion, state=state, results=results)
+        resolved |= _resolve_jumps(evaluator, design, motions, frames, by_motion, state=state, results=results)
     out = rest_frames(evaluator, design, problem, motions, sim_motions=sim_motions,
                       first={(m, s): results[(m, s, 0)].x for m in motions for s in kinds}, kinds=kinds)
     for m in motions:
@@ -363,7 +363,7 @@ def path_forces(evaluator, design: np.ndarray, problem, motions=None, frames: in
                 r = results[(m, s, i)]
                 tension = clutch_tensions(model, design, state(label, m, s), r.x, case.solver)
                 out.append(PathFrame(m, s, t, float(r.total_energy), tuple(float(v) for v in tension),
-                                     bool(r.converged), (m, s, i) in resolved))
+                                     bool(r.converged), resolved=(m, s, i) in resolved))
     holding_n = tuple((m, tuple(float(h) for h in model.holding(case.on_activation(m)))) for m in motions) \
         if model.slips else ()
     ends = {(m, s): results[(m, s, frames - 1)] for m in motions for s in kinds}
@@ -454,7 +454,7 @@ def _resolve_jumps(evaluator, design, motions, frames, by_motion, state, results
     pending = {}
     for m in motions:
         for s in (s for s in STATES if (m, s, 0) in results):
-            gen = _jump_repairs(m, s, frames, by_motion, state, results, replaced)
+            gen = _jump_repairs(m, s, frames, by_motion, state, results, replaced=replaced)
             ask = next(gen, None)
             if ask is not None:
                 pending[(m, s)] = (gen, ask)

@@ -226,10 +226,10 @@ def make_plan(evaluator, design: np.ndarray, motions=None, exhaustive_up_to: int
             res = r.total_energy - off.total_energy
             frac = res / gain if gain > MIN_GAIN * abs(off.total_energy) else float("nan")
             results.append(SetResult(m, tuple(names[i] for i in idx), float(r.total_energy), float(res), float(frac),
-                                     {names[i]: float(t[i]) for i in idx}, bool(r.converged)))
+                                     {names[i]: float(t[i]) for i in idx}, converged=bool(r.converged)))
     designed = {m: tuple(n for n, a in zip(names, g) if a > 0) for m, g in own.items()}
     return Plan(tuple(motions), names, tuple(results), {m: float(known[(m, "off")].total_energy) for m in motions},
-                K <= exhaustive_up_to, designed, tuple(from_path))
+                K <= exhaustive_up_to, designed=designed, from_path=tuple(from_path))
 
 
 def plan_markdown(plan: Plan, title: str) -> str:
